@@ -1,0 +1,105 @@
+//! Nanoseconds per guide operation on a 1,000-probe hemisphere grid over a closed box
+//! (the Cornell box's walls): locate, sample, pdf, update, estimate, rebuild.
+//!
+//! `cargo bench --bench guide_operations`
+
+use std::hint::black_box;
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use glam::{Vec2, Vec3};
+use guiding_core::{Guide, HemisphereGrid, HemisphereGridSettings, Lambertian, Pcg32, ProbeSet, Triangle};
+
+/// The six inward-facing walls of the box [-1, 1]³, two triangles each.
+fn box_walls() -> Vec<Triangle> {
+    let corner = |i: u32| {
+        Vec3::new(
+            if i & 1 == 0 { -1.0 } else { 1.0 },
+            if i & 2 == 0 { -1.0 } else { 1.0 },
+            if i & 4 == 0 { -1.0 } else { 1.0 },
+        )
+    };
+    // Quads with counter-clockwise winding seen from inside the box.
+    let quads = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 2, 6, 4], [1, 5, 7, 3], [0, 4, 5, 1], [2, 3, 7, 6]];
+    quads
+        .iter()
+        .flat_map(|q| {
+            let [a, b, c, d] = q.map(corner);
+            [Triangle::new(a, b, c), Triangle::new(a, c, d)]
+        })
+        .collect()
+}
+
+fn bench(c: &mut Criterion) {
+    let walls = box_walls();
+    let settings = HemisphereGridSettings { probe_count: Some(1000), ..Default::default() };
+    let mut grid = HemisphereGrid::build(&walls, settings).expect("grid");
+    // Query points: another low-discrepancy set on the same walls, offset so they are
+    // not the probes themselves.
+    let queries = ProbeSet::place_on_triangles(&walls, 4093, false).expect("queries");
+    let regions: Vec<_> = queries
+        .positions
+        .iter()
+        .zip(&queries.normals)
+        .map(|(&p, &n)| grid.locate(p, n).expect("every wall point has a probe"))
+        .collect();
+    let mut rng = Pcg32::new(1, 2);
+    // Teach every probe something so the CDFs are not flat.
+    for (i, &region) in regions.iter().enumerate() {
+        for _ in 0..64 {
+            let s = grid.sample(region, rng.next_vec2());
+            grid.update(region, s.direction, (i % 7) as f32 * s.direction.length());
+        }
+    }
+    grid.rebuild_sampling();
+    let uniforms: Vec<Vec2> = (0..4096).map(|_| rng.next_vec2()).collect();
+    let directions: Vec<Vec3> = regions.iter().zip(&uniforms).map(|(&r, &u)| grid.sample(r, u).direction).collect();
+
+    let mut i = 0usize;
+    let mut next = || {
+        i = (i + 1) % regions.len();
+        i
+    };
+    c.bench_function("locate", |b| {
+        b.iter(|| {
+            let k = next();
+            black_box(grid.locate(black_box(queries.positions[k]), black_box(queries.normals[k])))
+        })
+    });
+    c.bench_function("sample", |b| {
+        b.iter(|| {
+            let k = next();
+            black_box(grid.sample(black_box(regions[k]), black_box(uniforms[k])))
+        })
+    });
+    c.bench_function("pdf", |b| {
+        b.iter(|| {
+            let k = next();
+            black_box(grid.pdf(black_box(regions[k]), black_box(directions[k])))
+        })
+    });
+    c.bench_function("update", |b| {
+        b.iter(|| {
+            let k = next();
+            black_box(grid.update(black_box(regions[k]), black_box(directions[k]), black_box(0.5)))
+        })
+    });
+    c.bench_function("estimate_integral_lambertian", |b| {
+        b.iter(|| {
+            let k = next();
+            let bsdf = Lambertian { normal: queries.normals[k], albedo: 0.7 };
+            black_box(grid.estimate_integral(black_box(regions[k]), queries.normals[k], &bsdf, uniforms[k]))
+        })
+    });
+    c.bench_function("rebuild_sampling_1000_probes", |b| b.iter(|| grid.rebuild_sampling()));
+    println!(
+        "grid: {} probes x {} patches, {} bytes; default settings would hold {} probes in {} bytes",
+        grid.probe_count(),
+        grid.patch_count(),
+        grid.memory_bytes(),
+        HemisphereGridSettings::default().resolve_probe_count().unwrap(),
+        HemisphereGrid::build(&walls, HemisphereGridSettings::default()).unwrap().memory_bytes(),
+    );
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

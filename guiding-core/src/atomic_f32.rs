@@ -1,0 +1,35 @@
+//! f32 values stored in `AtomicU32`, updated lock-free by compare-exchange.
+
+use core::sync::atomic::{AtomicU32, Ordering};
+
+/// An `AtomicU32` holding the bits of `value`.
+pub(crate) fn new(value: f32) -> AtomicU32 {
+    AtomicU32::new(value.to_bits())
+}
+
+/// The current value; relaxed, since Q values carry no ordering with other memory.
+pub(crate) fn load(cell: &AtomicU32) -> f32 {
+    f32::from_bits(cell.load(Ordering::Relaxed))
+}
+
+/// Replaces the value by `next(current)` atomically, retrying when another thread
+/// changed it in between, so no update is lost and no value is ever torn.
+/// Returns the stored value.
+pub(crate) fn update(cell: &AtomicU32, next: impl Fn(f32) -> f32) -> f32 {
+    let mut current = cell.load(Ordering::Relaxed);
+    loop {
+        let replacement = next(f32::from_bits(current)).to_bits();
+        match cell.compare_exchange_weak(current, replacement, Ordering::Relaxed, Ordering::Relaxed) {
+            Ok(_) => return f32::from_bits(replacement),
+            Err(actual) => current = actual,
+        }
+    }
+}
+
+/// Adds one to a counter, saturating at `u32::MAX` instead of wrapping (a wrapped visit
+/// count would reset α = 1/(1+visits) to 1). Returns the count before the increment.
+pub(crate) fn increment_saturating(counter: &AtomicU32) -> u32 {
+    match counter.fetch_update(Ordering::Relaxed, Ordering::Relaxed, |v| v.checked_add(1)) {
+        Ok(previous) | Err(previous) => previous,
+    }
+}

@@ -1,0 +1,103 @@
+//! The [`Guide`] trait: a spatio-directional table of Q values that learns and samples.
+
+use alloc::vec::Vec;
+use core::fmt::Debug;
+
+use glam::{Vec2, Vec3};
+
+use crate::distribution::{DirectionSample, DirectionalDistribution};
+use crate::error::Error;
+use crate::scattering::ScatteringFunction;
+use crate::update_rule::UpdateOutcome;
+
+/// A learned importance table Q(x, ω) over the scene's surfaces (or volume) and
+/// directions, sampled in proportion to Q and updated along every path by Eq. (1).
+///
+/// The per-vertex flow follows Open PGL's: [`locate`](Self::locate) once, then sample,
+/// evaluate the pdf and update as often as needed with the returned region. Every
+/// method but [`rebuild_sampling`](Self::rebuild_sampling) takes `&self`, is lock-free,
+/// allocates nothing, and may be called from many threads at once.
+///
+/// Sampling reads a snapshot of Q taken by `rebuild_sampling` (called between passes),
+/// so within a pass `sample` and `pdf` describe one fixed distribution exactly while
+/// updates accumulate in Q.
+pub trait Guide: Sync + Sized {
+    /// A located region (e.g. a probe); cheap to copy, valid until the guide changes shape.
+    type Region: Copy + Debug + PartialEq + Send + Sync;
+
+    /// The directional distribution of one region.
+    type Distribution<'a>: DirectionalDistribution
+    where
+        Self: 'a;
+
+    /// The region for a surface point `position` (scene units) with unit normal `normal`
+    /// facing the side the path arrives from, or `None` when the guide covers no region
+    /// there (the caller then samples its BSDF alone).
+    fn locate(&self, position: Vec3, normal: Vec3) -> Option<Self::Region>;
+
+    /// The region's current sampling distribution (the snapshot of the last rebuild).
+    fn distribution(&self, region: Self::Region) -> Self::Distribution<'_>;
+
+    /// Draws a direction ∝ Q from two uniform numbers; pdf per steradian.
+    fn sample(&self, region: Self::Region, u: Vec2) -> DirectionSample {
+        self.distribution(region).sample(u)
+    }
+
+    /// The density of `direction` (unit, world space) in the region, per steradian.
+    fn pdf(&self, region: Self::Region, direction: Vec3) -> f32 {
+        self.distribution(region).pdf(direction)
+    }
+
+    /// Blends `target` (radiance, e.g. `Le(y,-ω) + estimate_integral(y, …)`) into
+    /// Q(region, direction) with the guide's update rule. NaN, infinite and negative
+    /// targets are rejected and counted, never stored.
+    fn update(&self, region: Self::Region, direction: Vec3, target: f32) -> UpdateOutcome;
+
+    /// Estimates `∫ Q(region, ωi) fs(ωi, wo) cos θi dωi` (radiance) with the guide's
+    /// [`IntegralEstimator`](crate::IntegralEstimator); `u` jitters stratified estimators.
+    fn estimate_integral<S: ScatteringFunction + ?Sized>(
+        &self,
+        region: Self::Region,
+        wo: Vec3,
+        bsdf: &S,
+        u: Vec2,
+    ) -> f32;
+
+    /// Rebuilds every region's sampling distribution from the current Q and starts the
+    /// next learning epoch. Call between passes.
+    fn rebuild_sampling(&mut self);
+
+    /// Counters and sizes.
+    fn stats(&self) -> GuideStats;
+
+    /// Checks every stored value (finite, within range, consistent distributions).
+    fn validate(&self) -> Result<(), Error>;
+
+    /// A versioned, checksummed byte image of the learned state.
+    fn to_bytes(&self) -> Vec<u8>;
+
+    /// Reads [`to_bytes`](Self::to_bytes)' output. Damaged, truncated or foreign buffers
+    /// return an error naming the field and offset; nothing panics.
+    fn from_bytes(bytes: &[u8]) -> Result<Self, Error>;
+}
+
+/// Sizes and counters of a guide.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct GuideStats {
+    /// Number of regions (probes, cells).
+    pub regions: usize,
+    /// Directional entries (patches) per region.
+    pub entries_per_region: usize,
+    /// Bytes held by the guide's tables.
+    pub memory_bytes: usize,
+    /// Updates accepted since creation (sum of visit counts).
+    pub accepted_updates: u64,
+    /// Entries that received at least one update.
+    pub visited_entries: usize,
+    /// Targets rejected for being NaN or infinite.
+    pub rejected_non_finite: u64,
+    /// Targets rejected for being negative.
+    pub rejected_negative: u64,
+    /// Learning epochs completed (calls to `rebuild_sampling`).
+    pub epochs: u32,
+}

@@ -1,0 +1,539 @@
+//! [`HemisphereGrid`]: probes on the surfaces, each with a hemisphere of Q patches.
+
+use core::f32::consts::PI;
+use core::sync::atomic::{AtomicU32, AtomicUsize, Ordering};
+
+use alloc::vec::Vec;
+use glam::{Vec2, Vec3};
+
+use crate::atomic_f32;
+use crate::cdf::{build_cdf, cdf_probability, sample_cdf};
+use crate::distribution::{DirectionSample, DirectionalDistribution};
+use crate::error::Error;
+use crate::frame::Frame;
+use crate::geometry::Triangle;
+use crate::guide::{Guide, GuideStats};
+use crate::scattering::ScatteringFunction;
+use crate::update_rule::{blend, classify_target, IntegralEstimator, UpdateOutcome};
+
+use super::mapping::PatchLayout;
+use super::probe_lookup::ProbeLookup;
+use super::probes::ProbeSet;
+use super::settings::HemisphereGridSettings;
+
+/// A probe of a [`HemisphereGrid`]: the region [`Guide::locate`] returns.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct ProbeId(pub u32);
+
+/// Bytes of a grid's tables for `probes` probes of `patches` patches each, excluding the
+/// struct itself: per probe a position, a normal and a visit count (28 bytes); per patch
+/// Q, a visit count and a CDF entry (12 bytes); the lookup's bucket table; and the shared
+/// per-patch centre and cosine tables (16 bytes per patch).
+pub(crate) fn table_bytes(probes: usize, patches: usize) -> usize {
+    let per_probe = 3 * 4 + 3 * 4 + 4 + patches * 12;
+    probes.saturating_mul(per_probe)
+        + (ProbeLookup::bucket_count(probes) + 1) * 4
+        + patches * 16
+        + core::mem::size_of::<HemisphereGrid>()
+}
+
+/// Dahm & Keller's importance table: probes at low-discrepancy points on the scene's
+/// surfaces, each holding a hemisphere of equal-area patches with one Q value
+/// (radiance) per patch.
+///
+/// A hit uses the nearest probe whose normal is within
+/// [`max_normal_angle_deg`](HemisphereGridSettings::max_normal_angle_deg) of its own
+/// (Voronoi cells on the surface, found through a hash grid). When no such probe lies
+/// within [`max_search_rings`](HemisphereGridSettings::max_search_rings) lookup cells,
+/// [`locate`](Guide::locate) returns `None` and the caller samples its BSDF alone there.
+///
+/// # Layout
+///
+/// Structure of arrays, all flat and exposed as slices for GPU upload or a C caller:
+/// probe `p`'s patch `k` lives at index `p·N + k` of [`q_values`](Self::q_values),
+/// [`visit_counts`](Self::visit_counts) and [`cdf`](Self::cdf), with N =
+/// [`patch_count`](Self::patch_count); probe arrays are indexed by `p`, sorted by lookup
+/// bucket (see [`ProbeLookup`]). Q is f32 bits in `AtomicU32`; the CDF is the snapshot
+/// of the last [`rebuild_sampling`](Guide::rebuild_sampling).
+///
+/// ```
+/// use guiding_core::{Guide, HemisphereGrid, HemisphereGridSettings, Lambertian, Triangle};
+/// use glam::{Vec2, Vec3};
+///
+/// let floor = [
+///     Triangle::new(Vec3::new(-1.0, 0.0, -1.0), Vec3::new(-1.0, 0.0, 1.0), Vec3::new(1.0, 0.0, 1.0)),
+///     Triangle::new(Vec3::new(-1.0, 0.0, -1.0), Vec3::new(1.0, 0.0, 1.0), Vec3::new(1.0, 0.0, -1.0)),
+/// ];
+/// let mut grid = HemisphereGrid::build(&floor, HemisphereGridSettings::default())?;
+/// let probe = grid.locate(Vec3::new(0.2, 0.0, 0.1), Vec3::Y).expect("a probe faces up");
+/// // Light arrives from straight above: teach the probe, then sample it.
+/// for _ in 0..100 {
+///     grid.update(probe, Vec3::Y, 10.0);
+/// }
+/// grid.rebuild_sampling();
+/// let sample = grid.sample(probe, Vec2::new(0.5, 0.5));
+/// assert!(sample.pdf > 0.0 && sample.direction.y > 0.0);
+/// // The learned Q also answers the integral of Eq. (1) for a diffuse surface.
+/// let bsdf = Lambertian { normal: Vec3::Y, albedo: 0.5 };
+/// assert!(grid.estimate_integral(probe, Vec3::Y, &bsdf, Vec2::ZERO) > 0.0);
+/// # Ok::<(), guiding_core::Error>(())
+/// ```
+#[derive(Debug)]
+pub struct HemisphereGrid {
+    settings: HemisphereGridSettings,
+    cos_max_normal_angle: f32,
+    probe_spacing: f32,
+    positions: Vec<Vec3>,
+    normals: Vec<Vec3>,
+    probe_visits: Vec<AtomicU32>,
+    q: Vec<AtomicU32>,
+    patch_visits: Vec<AtomicU32>,
+    cdf: Vec<f32>,
+    lookup: ProbeLookup,
+    patch_centers: Vec<Vec3>,
+    patch_cos_integrals: Vec<f32>,
+    epoch: u32,
+    rejected_non_finite: AtomicUsize,
+    rejected_negative: AtomicUsize,
+}
+
+/// The learned state a grid is assembled from (fresh or decoded).
+pub(crate) struct GridState {
+    pub(crate) probe_spacing: f32,
+    pub(crate) positions: Vec<Vec3>,
+    pub(crate) normals: Vec<Vec3>,
+    pub(crate) probe_visits: Vec<u32>,
+    pub(crate) q: Vec<f32>,
+    pub(crate) patch_visits: Vec<u32>,
+    pub(crate) cdf: Option<Vec<f32>>,
+    pub(crate) epoch: u32,
+    pub(crate) rejected_non_finite: usize,
+    pub(crate) rejected_negative: usize,
+}
+
+impl HemisphereGrid {
+    /// Places as many probes as the budget allows (or `settings.probe_count`) on
+    /// `triangles` in proportion to area, and sets every Q to `settings.initial_q`.
+    pub fn build(triangles: &[Triangle], settings: HemisphereGridSettings) -> Result<Self, Error> {
+        let count = settings.resolve_probe_count()?;
+        let probes = ProbeSet::place_on_triangles(triangles, count, settings.two_sided)?;
+        Self::from_probes(&probes, settings)
+    }
+
+    /// A grid over probes the caller placed. Normals are normalised; a non-finite
+    /// position or a zero-length normal is an error naming the probe.
+    pub fn from_probes(probes: &ProbeSet, settings: HemisphereGridSettings) -> Result<Self, Error> {
+        settings.validate()?;
+        if probes.is_empty() {
+            return Err(Error::NoSurface);
+        }
+        let budget = settings.budget_bytes;
+        let needed = settings.memory_bytes(probes.len());
+        if needed > budget || probes.len() > super::settings::MAX_PROBES {
+            return Err(Error::OverBudget { regions: probes.len(), needed_bytes: needed, budget_bytes: budget });
+        }
+        if probes.normals.len() != probes.len() {
+            return Err(Error::InvalidProbe {
+                index: probes.normals.len().min(probes.len()),
+                reason: "positions and normals differ in count",
+            });
+        }
+        let mut normals = Vec::with_capacity(probes.len());
+        for (index, (p, n)) in probes.positions.iter().zip(&probes.normals).enumerate() {
+            if !p.is_finite() {
+                return Err(Error::InvalidProbe { index, reason: "position is NaN or infinite" });
+            }
+            match n.try_normalize() {
+                Some(unit) => normals.push(unit),
+                None => return Err(Error::InvalidProbe { index, reason: "normal is zero, NaN or infinite" }),
+            }
+        }
+        let entries = probes.len() * settings.layout.patch_count();
+        let state = GridState {
+            probe_spacing: probes.spacing,
+            positions: probes.positions.clone(),
+            normals,
+            probe_visits: alloc::vec![0; probes.len()],
+            q: alloc::vec![settings.initial_q; entries],
+            patch_visits: alloc::vec![0; entries],
+            cdf: None,
+            epoch: 0,
+            rejected_non_finite: 0,
+            rejected_negative: 0,
+        };
+        Ok(Self::assemble(settings, state))
+    }
+
+    /// Builds the lookup, stores the probes in lookup order and, unless the state brings
+    /// its CDF snapshot, builds the CDFs from Q.
+    pub(crate) fn assemble(settings: HemisphereGridSettings, state: GridState) -> Self {
+        let patches = settings.layout.patch_count();
+        let (lookup, order) = ProbeLookup::build(&state.positions, state.probe_spacing, settings.max_search_rings);
+        // Every table is built with its exact capacity, so memory_bytes() is what the
+        // budget accounted for.
+        let reorder_probe = |values: &[Vec3]| order.iter().map(|&i| values[i as usize]).collect::<Vec<_>>();
+        let reorder_rows = |values: &[f32]| -> Vec<f32> {
+            let mut rows = Vec::with_capacity(values.len());
+            for &i in &order {
+                rows.extend_from_slice(&values[i as usize * patches..(i as usize + 1) * patches]);
+            }
+            rows
+        };
+        let to_atomic_f32 = |values: Vec<f32>| values.into_iter().map(atomic_f32::new).collect::<Vec<_>>();
+        let visits_in_order = |values: &[u32], width: usize| -> Vec<AtomicU32> {
+            let mut rows = Vec::with_capacity(values.len());
+            for &i in &order {
+                rows.extend(values[i as usize * width..(i as usize + 1) * width].iter().map(|&v| AtomicU32::new(v)));
+            }
+            rows
+        };
+        let (patch_centers, patch_cos_integrals) = settings.layout.patch_tables();
+        let cdf = state.cdf.as_deref().map(reorder_rows);
+        let has_cdf = cdf.is_some();
+        let mut grid = Self {
+            cos_max_normal_angle: libm::cosf(settings.max_normal_angle_deg.to_radians()),
+            probe_spacing: state.probe_spacing,
+            positions: reorder_probe(&state.positions),
+            normals: reorder_probe(&state.normals),
+            probe_visits: visits_in_order(&state.probe_visits, 1),
+            q: to_atomic_f32(reorder_rows(&state.q)),
+            patch_visits: visits_in_order(&state.patch_visits, patches),
+            cdf: cdf.unwrap_or_else(|| alloc::vec![0.0; state.q.len()]),
+            lookup,
+            patch_centers,
+            patch_cos_integrals,
+            epoch: state.epoch,
+            rejected_non_finite: AtomicUsize::new(state.rejected_non_finite),
+            rejected_negative: AtomicUsize::new(state.rejected_negative),
+            settings,
+        };
+        if !has_cdf {
+            grid.build_all_cdfs();
+        }
+        grid
+    }
+
+    fn build_all_cdfs(&mut self) {
+        let patches = self.patch_count();
+        let mix = self.settings.uniform_mix;
+        for (cdf, q) in self.cdf.chunks_exact_mut(patches).zip(self.q.chunks_exact(patches)) {
+            build_cdf(cdf, mix, |k| atomic_f32::load(&q[k]));
+        }
+    }
+
+    /// The settings the grid was built with.
+    pub fn settings(&self) -> &HemisphereGridSettings {
+        &self.settings
+    }
+
+    /// Number of probes.
+    pub fn probe_count(&self) -> usize {
+        self.positions.len()
+    }
+
+    /// Patches per probe (N).
+    pub fn patch_count(&self) -> usize {
+        self.patch_centers.len()
+    }
+
+    /// Learning epochs completed (calls to `rebuild_sampling`).
+    pub fn epoch(&self) -> u32 {
+        self.epoch
+    }
+
+    /// Probe positions, scene units, in storage order.
+    pub fn probe_positions(&self) -> &[Vec3] {
+        &self.positions
+    }
+
+    /// Probe unit normals, in storage order.
+    pub fn probe_normals(&self) -> &[Vec3] {
+        &self.normals
+    }
+
+    /// Q per patch (f32 bits), probe-major: entry `p·N + k`.
+    pub fn q_values(&self) -> &[AtomicU32] {
+        &self.q
+    }
+
+    /// Accepted updates per patch, probe-major.
+    pub fn visit_counts(&self) -> &[AtomicU32] {
+        &self.patch_visits
+    }
+
+    /// Accepted updates per probe.
+    pub fn probe_visit_counts(&self) -> &[AtomicU32] {
+        &self.probe_visits
+    }
+
+    /// Sampling CDFs, probe-major: N entries per probe, each a multiple of 2⁻²⁴, the last 1.
+    pub fn cdf(&self) -> &[f32] {
+        &self.cdf
+    }
+
+    /// The probe lookup (hash grid).
+    pub fn lookup(&self) -> &ProbeLookup {
+        &self.lookup
+    }
+
+    /// Typical distance between neighbouring probes, scene units.
+    pub fn probe_spacing(&self) -> f32 {
+        self.probe_spacing
+    }
+
+    /// The current Q of a probe's patch (radiance).
+    pub fn q(&self, probe: ProbeId, patch: usize) -> f32 {
+        atomic_f32::load(&self.q[probe.0 as usize * self.patch_count() + patch])
+    }
+
+    /// Sets every Q of `probe` from `values` (radiance, one per patch), clamped to
+    /// `[q_floor, f32::MAX]`; NaN becomes the floor. For tests, tools and restoring
+    /// tables learned elsewhere; sampling follows after the next rebuild.
+    pub fn set_q_values(&mut self, probe: ProbeId, values: &[f32]) {
+        let floor = self.settings.q_floor;
+        let patches = self.patch_count();
+        let start = probe.0 as usize * patches;
+        for (cell, &v) in self.q[start..start + patches].iter_mut().zip(values) {
+            let clamped = if v.is_nan() { floor } else { v.clamp(floor, f32::MAX) };
+            *cell = atomic_f32::new(clamped);
+        }
+    }
+
+    /// Bytes held by all tables and the struct.
+    pub fn memory_bytes(&self) -> usize {
+        let per_probe =
+            self.positions.capacity() * 12 + self.normals.capacity() * 12 + self.probe_visits.capacity() * 4;
+        let per_patch = (self.q.capacity() + self.patch_visits.capacity() + self.cdf.capacity()) * 4;
+        let shared = self.patch_centers.capacity() * 12 + self.patch_cos_integrals.capacity() * 4;
+        per_probe + per_patch + shared + self.lookup.memory_bytes() + core::mem::size_of::<Self>()
+    }
+
+    fn frame(&self, probe: ProbeId) -> Frame {
+        Frame::from_normal(self.normals[probe.0 as usize])
+    }
+
+    fn q_row(&self, probe: ProbeId) -> &[AtomicU32] {
+        let patches = self.patch_count();
+        let start = probe.0 as usize * patches;
+        &self.q[start..start + patches]
+    }
+
+    pub(crate) fn state_for_serialization(&self) -> GridStateView<'_> {
+        GridStateView {
+            probe_spacing: self.probe_spacing,
+            positions: &self.positions,
+            normals: &self.normals,
+            probe_visits: &self.probe_visits,
+            q: &self.q,
+            patch_visits: &self.patch_visits,
+            cdf: &self.cdf,
+            epoch: self.epoch,
+            rejected_non_finite: self.rejected_non_finite.load(Ordering::Relaxed),
+            rejected_negative: self.rejected_negative.load(Ordering::Relaxed),
+        }
+    }
+}
+
+/// Borrowed learned state, for serialization.
+pub(crate) struct GridStateView<'a> {
+    pub(crate) probe_spacing: f32,
+    pub(crate) positions: &'a [Vec3],
+    pub(crate) normals: &'a [Vec3],
+    pub(crate) probe_visits: &'a [AtomicU32],
+    pub(crate) q: &'a [AtomicU32],
+    pub(crate) patch_visits: &'a [AtomicU32],
+    pub(crate) cdf: &'a [f32],
+    pub(crate) epoch: u32,
+    pub(crate) rejected_non_finite: usize,
+    pub(crate) rejected_negative: usize,
+}
+
+/// One probe's sampling distribution: its CDF over patches, then uniform in the patch.
+#[derive(Clone, Copy, Debug)]
+pub struct ProbeDistribution<'a> {
+    cdf: &'a [f32],
+    frame: Frame,
+    layout: PatchLayout,
+}
+
+impl ProbeDistribution<'_> {
+    /// pdf per steradian of a direction in patch `patch`: P(patch) / ΔΩ.
+    fn patch_pdf(&self, patch: usize) -> f32 {
+        cdf_probability(self.cdf, patch) / self.layout.patch_solid_angle()
+    }
+}
+
+impl DirectionalDistribution for ProbeDistribution<'_> {
+    fn sample(&self, u: Vec2) -> DirectionSample {
+        let (patch, u_in_patch) = sample_cdf(self.cdf, u.x);
+        let local = self.layout.direction_in_patch(patch, Vec2::new(u_in_patch, u.y));
+        DirectionSample { direction: self.frame.to_world(local), pdf: self.patch_pdf(patch) }
+    }
+
+    fn pdf(&self, direction: Vec3) -> f32 {
+        match self.layout.patch_of(self.frame.to_local(direction)) {
+            Some(patch) => self.patch_pdf(patch),
+            None => 0.0,
+        }
+    }
+}
+
+impl Guide for HemisphereGrid {
+    type Region = ProbeId;
+    type Distribution<'a> = ProbeDistribution<'a>;
+
+    fn locate(&self, position: Vec3, normal: Vec3) -> Option<ProbeId> {
+        let normal = normal.try_normalize()?;
+        if !position.is_finite() {
+            return None;
+        }
+        let cos_max = self.cos_max_normal_angle;
+        self.lookup
+            .nearest(position, &self.positions, |p| self.normals[p].dot(normal) >= cos_max)
+            .map(|p| ProbeId(p as u32))
+    }
+
+    fn distribution(&self, probe: ProbeId) -> ProbeDistribution<'_> {
+        let patches = self.patch_count();
+        let start = probe.0 as usize * patches;
+        ProbeDistribution {
+            cdf: &self.cdf[start..start + patches],
+            frame: self.frame(probe),
+            layout: self.settings.layout,
+        }
+    }
+
+    fn update(&self, probe: ProbeId, direction: Vec3, target: f32) -> UpdateOutcome {
+        let target = match classify_target(target) {
+            Ok(t) => t,
+            Err(rejected) => {
+                let counter = match rejected {
+                    UpdateOutcome::RejectedNegative => &self.rejected_negative,
+                    _ => &self.rejected_non_finite,
+                };
+                counter.fetch_add(1, Ordering::Relaxed);
+                return rejected;
+            }
+        };
+        let Some(patch) = self.settings.layout.patch_of(self.frame(probe).to_local(direction)) else {
+            return UpdateOutcome::OutsideDomain;
+        };
+        let index = probe.0 as usize * self.patch_count() + patch;
+        let patch_visits = atomic_f32::increment_saturating(&self.patch_visits[index]);
+        let probe_visits = atomic_f32::increment_saturating(&self.probe_visits[probe.0 as usize]);
+        let alpha = self.settings.update_rule.learning_rate.alpha(patch_visits, probe_visits, self.epoch);
+        let floor = self.settings.q_floor;
+        atomic_f32::update(&self.q[index], |q| blend(q, target, alpha, floor));
+        UpdateOutcome::Accepted
+    }
+
+    fn estimate_integral<S: ScatteringFunction + ?Sized>(&self, probe: ProbeId, wo: Vec3, bsdf: &S, u: Vec2) -> f32 {
+        let q = self.q_row(probe);
+        let frame = self.frame(probe);
+        let solid_angle = self.settings.layout.patch_solid_angle() as f64;
+        let lambertian = bsdf.lambertian_albedo();
+        let at_center = |k: usize| match lambertian {
+            Some(albedo) => albedo * (1.0 / PI) * self.patch_centers[k].z,
+            None => bsdf.eval_cos(frame.to_world(self.patch_centers[k]), wo),
+        };
+        let estimate = match self.settings.update_rule.integral {
+            IntegralEstimator::BsdfWeightedSum => match lambertian {
+                Some(albedo) => {
+                    let sum: f64 = q
+                        .iter()
+                        .zip(&self.patch_cos_integrals)
+                        .map(|(q, &w)| atomic_f32::load(q) as f64 * w as f64)
+                        .sum();
+                    albedo as f64 / core::f64::consts::PI * sum
+                }
+                None => {
+                    solid_angle
+                        * (0..q.len()).map(|k| atomic_f32::load(&q[k]) as f64 * at_center(k) as f64).sum::<f64>()
+                }
+            },
+            IntegralEstimator::StratifiedPatches => {
+                let layout = self.settings.layout;
+                let sum: f64 = (0..q.len())
+                    .map(|k| {
+                        let wi = frame.to_world(layout.direction_in_patch(k, u));
+                        atomic_f32::load(&q[k]) as f64 * bsdf.eval_cos(wi, wo) as f64
+                    })
+                    .sum();
+                solid_angle * sum
+            }
+            IntegralEstimator::MaxEntry => {
+                let best =
+                    (0..q.len()).map(|k| atomic_f32::load(&q[k]) as f64 * at_center(k) as f64).fold(0.0, f64::max);
+                core::f64::consts::PI * best
+            }
+        };
+        estimate.min(f32::MAX as f64) as f32
+    }
+
+    fn rebuild_sampling(&mut self) {
+        self.build_all_cdfs();
+        self.epoch = self.epoch.saturating_add(1);
+    }
+
+    fn stats(&self) -> GuideStats {
+        let visits = self.patch_visits.iter().map(|v| v.load(Ordering::Relaxed));
+        let (accepted, visited) =
+            visits.fold((0u64, 0usize), |(sum, count), v| (sum + v as u64, count + (v > 0) as usize));
+        GuideStats {
+            regions: self.probe_count(),
+            entries_per_region: self.patch_count(),
+            memory_bytes: self.memory_bytes(),
+            accepted_updates: accepted,
+            visited_entries: visited,
+            rejected_non_finite: self.rejected_non_finite.load(Ordering::Relaxed) as u64,
+            rejected_negative: self.rejected_negative.load(Ordering::Relaxed) as u64,
+            epochs: self.epoch,
+        }
+    }
+
+    fn validate(&self) -> Result<(), Error> {
+        let invalid = |field: &'static str, index: usize, requirement: &'static str| {
+            Err(Error::Decode(crate::error::DecodeError::InvalidField { field, index, requirement }))
+        };
+        for (i, p) in self.positions.iter().enumerate() {
+            if !p.is_finite() {
+                return invalid("positions", i, "finite");
+            }
+        }
+        for (i, n) in self.normals.iter().enumerate() {
+            if !n.is_finite() || (n.length() - 1.0).abs() > 1e-3 {
+                return invalid("normals", i, "finite and unit length");
+            }
+        }
+        let floor = self.settings.q_floor;
+        for (i, q) in self.q.iter().enumerate() {
+            let q = atomic_f32::load(q);
+            if !(q.is_finite() && q >= floor) {
+                return invalid("q", i, "finite and at least q_floor");
+            }
+        }
+        for (p, row) in self.cdf.chunks_exact(self.patch_count()).enumerate() {
+            let mut previous = 0.0;
+            for (k, &c) in row.iter().enumerate() {
+                if !(c >= previous && c <= 1.0)
+                    || c != libm::roundf(c / crate::cdf::PROBABILITY_QUANTUM) * crate::cdf::PROBABILITY_QUANTUM
+                {
+                    return invalid("cdf", p * row.len() + k, "non-decreasing multiples of 2^-24 in [0, 1]");
+                }
+                previous = c;
+            }
+            if previous != 1.0 {
+                return invalid("cdf", p * row.len() + row.len() - 1, "ending at 1");
+            }
+        }
+        Ok(())
+    }
+
+    fn to_bytes(&self) -> Vec<u8> {
+        super::serialize::encode(self)
+    }
+
+    fn from_bytes(bytes: &[u8]) -> Result<Self, Error> {
+        super::serialize::decode(bytes)
+    }
+}

@@ -1,0 +1,16 @@
+//! The hemisphere grid (feature `hemisphere`): probes on the surfaces, each with a
+//! hemisphere of equal-area patches holding Q.
+
+mod grid;
+mod mapping;
+mod probe_lookup;
+mod probes;
+mod serialize;
+mod settings;
+
+pub use grid::{HemisphereGrid, ProbeDistribution, ProbeId};
+pub use mapping::{HemisphereMapping, PatchLayout, MAX_PATCHES};
+pub use probe_lookup::ProbeLookup;
+pub use probes::ProbeSet;
+pub use serialize::{FORMAT_VERSION, STRUCTURE_TAG};
+pub use settings::{HemisphereGridSettings, DEFAULT_BUDGET_BYTES, MAX_PROBES};

@@ -1,0 +1,230 @@
+//! A spatial hash grid over probe positions: nearest probe with a similar normal.
+//!
+//! Layout (flat, GPU-readable): probes are stored sorted by hash bucket, and
+//! `bucket_starts[b]..bucket_starts[b+1]` is the range of probes in bucket `b`. A cell
+//! (integer coordinates of `floor((p - origin) / cell_size)`) hashes to one of
+//! `bucket_starts.len() - 1` buckets, a power of two between 2 and 4 times the probe count.
+
+use alloc::vec;
+use alloc::vec::Vec;
+use glam::{IVec3, Vec3};
+
+/// Coordinates are clamped to ±2²⁰ cells so neighbour offsets never overflow.
+const MAX_CELL_COORDINATE: i32 = 1 << 20;
+
+/// The hash grid. See the module documentation for its layout.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ProbeLookup {
+    origin: Vec3,
+    cell_size: f32,
+    inverse_cell_size: f32,
+    max_rings: u32,
+    bucket_starts: Vec<u32>,
+}
+
+impl ProbeLookup {
+    /// Number of buckets for `probe_count` probes.
+    pub fn bucket_count(probe_count: usize) -> usize {
+        (probe_count.max(1) * 2).next_power_of_two()
+    }
+
+    /// Builds the grid over `positions` with cells of `spacing` (clamped to a usable size)
+    /// and returns it with the order to store the probes in: `order[i]` is the index in
+    /// `positions` of the probe that goes to slot `i`. The sort is stable, so building
+    /// again over already sorted positions returns the identity.
+    pub fn build(positions: &[Vec3], spacing: f32, max_rings: u32) -> (Self, Vec<u32>) {
+        let origin = positions.iter().fold(Vec3::splat(f32::INFINITY), |lo, &p| lo.min(p));
+        let origin = if origin.is_finite() { origin } else { Vec3::ZERO };
+        let extent = positions.iter().fold(0.0f32, |e, &p| e.max((p - origin).max_element()));
+        // Cells no smaller than 2⁻²⁰ of the extent (coordinates stay in range) and never
+        // zero or non-finite.
+        let mut cell_size = spacing.max(extent / MAX_CELL_COORDINATE as f32);
+        if !(cell_size.is_finite() && cell_size > 0.0) {
+            cell_size = if extent > 0.0 && extent.is_finite() { extent } else { 1.0 };
+        }
+        let mut lookup = Self {
+            origin,
+            cell_size,
+            inverse_cell_size: 1.0 / cell_size,
+            max_rings,
+            bucket_starts: vec![0; Self::bucket_count(positions.len()) + 1],
+        };
+        let buckets: Vec<u32> = positions.iter().map(|&p| lookup.bucket(lookup.cell_of(p))).collect();
+        for &b in &buckets {
+            lookup.bucket_starts[b as usize + 1] += 1;
+        }
+        for b in 1..lookup.bucket_starts.len() {
+            lookup.bucket_starts[b] += lookup.bucket_starts[b - 1];
+        }
+        let mut next = lookup.bucket_starts.clone();
+        let mut order = vec![0u32; positions.len()];
+        for (probe, &b) in buckets.iter().enumerate() {
+            order[next[b as usize] as usize] = probe as u32;
+            next[b as usize] += 1;
+        }
+        (lookup, order)
+    }
+
+    /// Edge length of a grid cell, scene units.
+    pub fn cell_size(&self) -> f32 {
+        self.cell_size
+    }
+
+    /// The bucket table: probes of bucket `b` are `bucket_starts[b]..bucket_starts[b+1]`.
+    pub fn bucket_starts(&self) -> &[u32] {
+        &self.bucket_starts
+    }
+
+    /// Bytes held by the table.
+    pub fn memory_bytes(&self) -> usize {
+        self.bucket_starts.capacity() * core::mem::size_of::<u32>()
+    }
+
+    fn cell_of(&self, p: Vec3) -> IVec3 {
+        let c = ((p - self.origin) * self.inverse_cell_size).floor();
+        // `as` saturates and maps NaN to 0; the clamp keeps neighbour arithmetic in range.
+        IVec3::new(c.x as i32, c.y as i32, c.z as i32)
+            .clamp(IVec3::splat(-MAX_CELL_COORDINATE), IVec3::splat(MAX_CELL_COORDINATE))
+    }
+
+    fn bucket(&self, cell: IVec3) -> u32 {
+        let hash = (cell.x as u32).wrapping_mul(73_856_093)
+            ^ (cell.y as u32).wrapping_mul(19_349_663)
+            ^ (cell.z as u32).wrapping_mul(83_492_791);
+        hash & (self.bucket_starts.len() as u32 - 2)
+    }
+
+    /// The probe nearest to `query` among those `accept` admits, if one lies within
+    /// `max_rings · cell_size`. Searches shells of cells around the query's cell: after
+    /// shell r every unvisited probe is at least r·cell_size away, so the search stops
+    /// as soon as the best distance is within that, and the result is the exact nearest.
+    pub fn nearest(&self, query: Vec3, positions: &[Vec3], accept: impl Fn(usize) -> bool) -> Option<usize> {
+        let center = self.cell_of(query);
+        let mut best: Option<(usize, f32)> = None;
+        for ring in 0..=self.max_rings as i32 {
+            self.for_each_shell_cell(center, ring, |cell| {
+                let b = self.bucket(cell) as usize;
+                let (start, end) = (self.bucket_starts[b] as usize, self.bucket_starts[b + 1] as usize);
+                for (probe, position) in positions.iter().enumerate().take(end).skip(start) {
+                    let d2 = position.distance_squared(query);
+                    if best.is_none_or(|(_, best_d2)| d2 < best_d2) && accept(probe) {
+                        best = Some((probe, d2));
+                    }
+                }
+            });
+            if let Some((probe, d2)) = best {
+                let reach = ring as f32 * self.cell_size;
+                if d2 <= reach * reach {
+                    return Some(probe);
+                }
+            }
+        }
+        None
+    }
+
+    /// Visits the cells at Chebyshev distance exactly `ring` from `center`.
+    fn for_each_shell_cell(&self, center: IVec3, ring: i32, mut visit: impl FnMut(IVec3)) {
+        for dz in -ring..=ring {
+            for dy in -ring..=ring {
+                let on_face = dz.abs() == ring || dy.abs() == ring;
+                if on_face {
+                    for dx in -ring..=ring {
+                        visit(center + IVec3::new(dx, dy, dz));
+                    }
+                } else {
+                    visit(center + IVec3::new(-ring, dy, dz));
+                    if ring != 0 {
+                        visit(center + IVec3::new(ring, dy, dz));
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::low_discrepancy::Pcg32;
+
+    fn random_points(rng: &mut Pcg32, count: usize, scale: f32, offset: Vec3) -> Vec<Vec3> {
+        (0..count).map(|_| offset + Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32() * 0.1) * scale).collect()
+    }
+
+    fn brute_force(query: Vec3, positions: &[Vec3], accept: impl Fn(usize) -> bool) -> Option<f32> {
+        positions
+            .iter()
+            .enumerate()
+            .filter(|&(i, _)| accept(i))
+            .map(|(_, p)| p.distance_squared(query))
+            .min_by(f32::total_cmp)
+    }
+
+    #[test]
+    fn shells_visit_each_cell_once() {
+        let (lookup, _) = ProbeLookup::build(&[Vec3::ZERO], 1.0, 3);
+        for ring in 0..4 {
+            let mut cells = Vec::new();
+            lookup.for_each_shell_cell(IVec3::ZERO, ring, |c| cells.push(c));
+            let expected = if ring == 0 { 1 } else { (2 * ring + 1).pow(3) - (2 * ring - 1).pow(3) };
+            assert_eq!(cells.len(), expected as usize);
+            cells.sort_by_key(|c| (c.x, c.y, c.z));
+            cells.dedup();
+            assert_eq!(cells.len(), expected as usize);
+            assert!(cells.iter().all(|c| c.abs().max_element() == ring));
+        }
+    }
+
+    #[test]
+    fn nearest_matches_brute_force() {
+        let mut rng = Pcg32::new(11, 0);
+        for (scale, offset) in [(1.0, Vec3::ZERO), (1e-3, Vec3::splat(1e3)), (1e4, Vec3::splat(-5e3))] {
+            let points = random_points(&mut rng, 2000, scale, offset);
+            let spacing = scale / libm::sqrtf(2000.0);
+            let (lookup, order) = ProbeLookup::build(&points, spacing, 64);
+            let sorted: Vec<Vec3> = order.iter().map(|&i| points[i as usize]).collect();
+            for _ in 0..500 {
+                let query = offset + Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32() * 0.2) * scale;
+                // Admit only a third of the probes, as a normal test would.
+                let accept = |i: usize| order[i] % 3 == 0;
+                let found = lookup.nearest(query, &sorted, accept).unwrap();
+                let expected = brute_force(query, &sorted, accept).unwrap();
+                assert_eq!(sorted[found].distance_squared(query), expected);
+            }
+        }
+    }
+
+    #[test]
+    fn nothing_admitted_or_far_away_gives_none() {
+        let mut rng = Pcg32::new(12, 0);
+        let points = random_points(&mut rng, 100, 1.0, Vec3::ZERO);
+        let (lookup, order) = ProbeLookup::build(&points, 0.1, 2);
+        let sorted: Vec<Vec3> = order.iter().map(|&i| points[i as usize]).collect();
+        assert_eq!(lookup.nearest(Vec3::splat(0.5), &sorted, |_| false), None);
+        assert_eq!(lookup.nearest(Vec3::splat(100.0), &sorted, |_| true), None);
+        assert_eq!(lookup.nearest(Vec3::NAN, &sorted, |_| true), None);
+    }
+
+    #[test]
+    fn sorting_is_stable_and_buckets_cover_all_probes() {
+        let mut rng = Pcg32::new(13, 0);
+        let points = random_points(&mut rng, 300, 2.0, Vec3::ZERO);
+        let (lookup, order) = ProbeLookup::build(&points, 0.2, 2);
+        assert_eq!(*lookup.bucket_starts().last().unwrap(), 300);
+        let sorted: Vec<Vec3> = order.iter().map(|&i| points[i as usize]).collect();
+        let (again, identity) = ProbeLookup::build(&sorted, 0.2, 2);
+        assert_eq!(again, lookup);
+        assert!(identity.iter().enumerate().all(|(i, &j)| i as u32 == j));
+    }
+
+    #[test]
+    fn a_single_probe_or_coincident_probes_work() {
+        let (lookup, order) = ProbeLookup::build(&[Vec3::splat(3.0)], 0.0, 2);
+        assert_eq!(order, [0]);
+        assert_eq!(lookup.nearest(Vec3::splat(3.0), &[Vec3::splat(3.0)], |_| true), Some(0));
+        let same = [Vec3::ONE; 5];
+        let (lookup, _) = ProbeLookup::build(&same, 0.0, 1);
+        assert!(lookup.nearest(Vec3::ONE * 1.5, &same, |_| true).is_some());
+        assert!(lookup.nearest(Vec3::ONE, &same, |_| true).is_some());
+    }
+}

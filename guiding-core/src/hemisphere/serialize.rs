@@ -1,0 +1,244 @@
+//! The byte format of a [`HemisphereGrid`] (version 1, little-endian).
+//!
+//! ```text
+//! "LODESTAR" magic (8 bytes) · u32 format version · u32 structure tag (1)
+//! settings: u32 mapping · u32 nu · u32 nv · u32 two_sided · f32 max_normal_angle_deg
+//!           · u32 max_search_rings · f32 initial_q · f32 q_floor · f32 uniform_mix
+//!           · u32 learning-rate kind · f32 its parameter · u32 integral estimator
+//!           · u32 budget low · u32 budget high · u32 probe_count (0 = from budget)
+//! state:    f32 probe_spacing · u32 epoch · u32×2 rejected non-finite · u32×2 rejected
+//!           negative · u32 probe count P
+//!           · P×3 f32 positions · P×3 f32 normals · P u32 probe visits
+//!           · P·N f32 Q · P·N u32 patch visits · P·N f32 CDF
+//! u64 FNV-1a checksum of everything before it
+//! ```
+//!
+//! The lookup and the patch tables are derived, so they are rebuilt on load. The CDF
+//! snapshot is stored, so a loaded grid samples exactly as the saved one did.
+
+use alloc::vec::Vec;
+use core::sync::atomic::Ordering;
+use glam::Vec3;
+
+use crate::bytes::{ByteReader, ByteWriter};
+use crate::error::{DecodeError, Error};
+use crate::update_rule::{IntegralEstimator, LearningRate, UpdateRule};
+
+use super::grid::{GridState, HemisphereGrid};
+use super::mapping::{HemisphereMapping, PatchLayout};
+use super::settings::{HemisphereGridSettings, MAX_PROBES};
+
+const MAGIC: &[u8; 8] = b"LODESTAR";
+/// Format version written and read by this build.
+pub const FORMAT_VERSION: u32 = 1;
+/// Structure tag of a hemisphere grid.
+pub const STRUCTURE_TAG: u32 = 1;
+
+pub(crate) fn encode(grid: &HemisphereGrid) -> Vec<u8> {
+    let s = grid.settings();
+    let state = grid.state_for_serialization();
+    let entries = state.q.len();
+    let probes = state.positions.len();
+    let mut w = ByteWriter::with_capacity(128 + probes * 28 + entries * 12);
+    w.put_bytes(MAGIC);
+    w.put_u32(FORMAT_VERSION);
+    w.put_u32(STRUCTURE_TAG);
+    w.put_u32(match s.layout.mapping {
+        HemisphereMapping::Cylindrical => 0,
+        HemisphereMapping::ConcentricSquare => 1,
+    });
+    w.put_u32(s.layout.resolution[0]);
+    w.put_u32(s.layout.resolution[1]);
+    w.put_u32(s.two_sided as u32);
+    w.put_f32(s.max_normal_angle_deg);
+    w.put_u32(s.max_search_rings);
+    w.put_f32(s.initial_q);
+    w.put_f32(s.q_floor);
+    w.put_f32(s.uniform_mix);
+    let (kind, parameter) = match s.update_rule.learning_rate {
+        LearningRate::Exponential { alpha } => (0, alpha),
+        LearningRate::SimpleAverage => (1, 0.0),
+        LearningRate::RegionVisits => (2, 0.0),
+        LearningRate::Global { exponent } => (3, exponent),
+    };
+    w.put_u32(kind);
+    w.put_f32(parameter);
+    w.put_u32(match s.update_rule.integral {
+        IntegralEstimator::BsdfWeightedSum => 0,
+        IntegralEstimator::StratifiedPatches => 1,
+        IntegralEstimator::MaxEntry => 2,
+    });
+    let budget = s.budget_bytes as u64;
+    w.put_u32(budget as u32);
+    w.put_u32((budget >> 32) as u32);
+    w.put_u32(s.probe_count.unwrap_or(0) as u32);
+    w.put_f32(state.probe_spacing);
+    w.put_u32(state.epoch);
+    for count in [state.rejected_non_finite as u64, state.rejected_negative as u64] {
+        w.put_u32(count as u32);
+        w.put_u32((count >> 32) as u32);
+    }
+    w.put_u32(probes as u32);
+    for v in state.positions.iter().chain(state.normals) {
+        v.to_array().iter().for_each(|&c| w.put_f32(c));
+    }
+    state.probe_visits.iter().for_each(|v| w.put_u32(v.load(Ordering::Relaxed)));
+    state.q.iter().for_each(|q| w.put_u32(q.load(Ordering::Relaxed)));
+    state.patch_visits.iter().for_each(|v| w.put_u32(v.load(Ordering::Relaxed)));
+    state.cdf.iter().for_each(|&c| w.put_f32(c));
+    w.finish_with_checksum()
+}
+
+fn invalid(field: &'static str, index: usize, requirement: &'static str) -> Error {
+    Error::Decode(DecodeError::InvalidField { field, index, requirement })
+}
+
+fn read_u64(r: &mut ByteReader<'_>) -> Result<u64, DecodeError> {
+    let low = r.u32()? as u64;
+    Ok(low | (r.u32()? as u64) << 32)
+}
+
+fn read_settings(r: &mut ByteReader<'_>) -> Result<HemisphereGridSettings, Error> {
+    let mapping = match r.u32()? {
+        0 => HemisphereMapping::Cylindrical,
+        1 => HemisphereMapping::ConcentricSquare,
+        _ => return Err(invalid("mapping", 0, "0 (cylindrical) or 1 (concentric square)")),
+    };
+    let resolution = [r.u32()?, r.u32()?];
+    let two_sided = match r.u32()? {
+        0 => false,
+        1 => true,
+        _ => return Err(invalid("two_sided", 0, "0 or 1")),
+    };
+    let max_normal_angle_deg = r.f32()?;
+    let max_search_rings = r.u32()?;
+    let initial_q = r.f32()?;
+    let q_floor = r.f32()?;
+    let uniform_mix = r.f32()?;
+    let kind = r.u32()?;
+    let parameter = r.f32()?;
+    let learning_rate = match kind {
+        0 => LearningRate::Exponential { alpha: parameter },
+        1 => LearningRate::SimpleAverage,
+        2 => LearningRate::RegionVisits,
+        3 => LearningRate::Global { exponent: parameter },
+        _ => return Err(invalid("learning_rate", 0, "a kind in 0..=3")),
+    };
+    let integral = match r.u32()? {
+        0 => IntegralEstimator::BsdfWeightedSum,
+        1 => IntegralEstimator::StratifiedPatches,
+        2 => IntegralEstimator::MaxEntry,
+        _ => return Err(invalid("integral", 0, "a kind in 0..=2")),
+    };
+    let budget_bytes = usize::try_from(read_u64(r)?).map_err(|_| invalid("budget_bytes", 0, "addressable"))?;
+    let probe_count = match r.u32()? {
+        0 => None,
+        n => Some(n as usize),
+    };
+    let settings = HemisphereGridSettings {
+        budget_bytes,
+        probe_count,
+        layout: PatchLayout { mapping, resolution },
+        two_sided,
+        max_normal_angle_deg,
+        max_search_rings,
+        initial_q,
+        q_floor,
+        uniform_mix,
+        update_rule: UpdateRule { learning_rate, integral },
+    };
+    settings.validate()?;
+    Ok(settings)
+}
+
+fn read_vec3s(r: &mut ByteReader<'_>, count: usize) -> Result<Vec<Vec3>, DecodeError> {
+    let mut out = Vec::with_capacity(count);
+    for _ in 0..count {
+        out.push(Vec3::new(r.f32()?, r.f32()?, r.f32()?));
+    }
+    Ok(out)
+}
+
+fn read_f32s(r: &mut ByteReader<'_>, count: usize) -> Result<Vec<f32>, DecodeError> {
+    (0..count).map(|_| r.f32()).collect()
+}
+
+fn read_u32s(r: &mut ByteReader<'_>, count: usize) -> Result<Vec<u32>, DecodeError> {
+    (0..count).map(|_| r.u32()).collect()
+}
+
+pub(crate) fn decode(bytes: &[u8]) -> Result<HemisphereGrid, Error> {
+    if bytes.len() < MAGIC.len() || &bytes[..MAGIC.len()] != MAGIC {
+        return Err(DecodeError::BadMagic.into());
+    }
+    let mut r = ByteReader::verified(bytes)?;
+    r.take(MAGIC.len())?;
+    let version = r.u32()?;
+    if version != FORMAT_VERSION {
+        return Err(DecodeError::UnsupportedVersion { found: version, supported: FORMAT_VERSION }.into());
+    }
+    let structure = r.u32()?;
+    if structure != STRUCTURE_TAG {
+        return Err(DecodeError::WrongStructure { found: structure, expected: STRUCTURE_TAG }.into());
+    }
+    let settings = read_settings(&mut r)?;
+    let probe_spacing = r.f32()?;
+    if !(probe_spacing.is_finite() && probe_spacing >= 0.0) {
+        return Err(invalid("probe_spacing", 0, "finite and non-negative"));
+    }
+    let epoch = r.u32()?;
+    let rejected_non_finite = read_u64(&mut r)? as usize;
+    let rejected_negative = read_u64(&mut r)? as usize;
+    let probes = r.u32()? as usize;
+    if probes == 0 || probes > MAX_PROBES {
+        return Err(invalid("probe_count", 0, "in 1..=2^24"));
+    }
+    let patches = settings.layout.patch_count();
+    let entries = probes.checked_mul(patches).ok_or_else(|| invalid("probe_count", 0, "addressable"))?;
+    // Check the length before allocating, so a damaged count cannot demand memory.
+    let needed = entries
+        .checked_mul(12)
+        .and_then(|bytes| bytes.checked_add(probes * 28))
+        .ok_or_else(|| invalid("probe_count", 0, "addressable"))?;
+    if r.remaining() != needed {
+        return Err(if r.remaining() < needed {
+            DecodeError::Truncated { offset: r.offset(), needed, available: r.remaining() }
+        } else {
+            DecodeError::TrailingBytes { count: r.remaining() - needed }
+        }
+        .into());
+    }
+    let positions = read_vec3s(&mut r, probes)?;
+    if let Some(i) = positions.iter().position(|p| !p.is_finite()) {
+        return Err(invalid("positions", i, "finite"));
+    }
+    let normals = read_vec3s(&mut r, probes)?;
+    if let Some(i) = normals.iter().position(|n| !(n.is_finite() && (n.length() - 1.0).abs() <= 1e-3)) {
+        return Err(invalid("normals", i, "finite and unit length"));
+    }
+    let probe_visits = read_u32s(&mut r, probes)?;
+    let q = read_f32s(&mut r, entries)?;
+    if let Some(i) = q.iter().position(|&q| !(q.is_finite() && q >= settings.q_floor)) {
+        return Err(invalid("q", i, "finite and at least q_floor"));
+    }
+    let patch_visits = read_u32s(&mut r, entries)?;
+    let cdf = read_f32s(&mut r, entries)?;
+    r.finish()?;
+    let grid = HemisphereGrid::assemble(
+        settings,
+        GridState {
+            probe_spacing,
+            positions,
+            normals,
+            probe_visits,
+            q,
+            patch_visits,
+            cdf: Some(cdf),
+            epoch,
+            rejected_non_finite,
+            rejected_negative,
+        },
+    );
+    crate::Guide::validate(&grid)?;
+    Ok(grid)
+}

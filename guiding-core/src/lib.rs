@@ -1,0 +1,37 @@
+#![doc = include_str!("../README.md")]
+#![no_std]
+#![deny(missing_docs, unsafe_code)]
+
+extern crate alloc;
+
+mod atomic_f32;
+mod bytes;
+pub mod cdf;
+mod distribution;
+mod error;
+mod frame;
+mod geometry;
+mod guide;
+mod intersector;
+mod low_discrepancy;
+mod scattering;
+mod update_rule;
+pub mod validation;
+
+#[cfg(feature = "hemisphere")]
+pub mod hemisphere;
+
+pub use distribution::{
+    DirectionSample, DirectionalDistribution, UniformHemisphere, UniformSphere, MIN_SAMPLED_COS_THETA,
+};
+pub use error::{DecodeError, Error};
+pub use frame::Frame;
+pub use geometry::{square_to_triangle_barycentrics, Hit, Ray, Triangle};
+pub use guide::{Guide, GuideStats};
+pub use intersector::Intersector;
+pub use low_discrepancy::{hammersley, radical_inverse_base2, Pcg32};
+pub use scattering::{Lambertian, ScatteringFunction};
+pub use update_rule::{blend, classify_target, IntegralEstimator, LearningRate, UpdateOutcome, UpdateRule};
+
+#[cfg(feature = "hemisphere")]
+pub use hemisphere::{HemisphereGrid, HemisphereGridSettings, HemisphereMapping, PatchLayout, ProbeId, ProbeSet};

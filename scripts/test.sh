@@ -1,0 +1,31 @@
+#!/usr/bin/env bash
+# The whole test suite, as CI runs it: set-up, formatting, lints, docs, the no_std core
+# build and its dependency list, then every test of the workspace. Prints each stage's time.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+. scripts/setup.sh
+
+stage() {
+    local name=$1
+    shift
+    local start=$SECONDS
+    echo "==> $name"
+    "$@"
+    echo "==> $name: $((SECONDS - start)) s"
+}
+
+core_dependencies_are_glam_and_libm() {
+    cargo build -p guiding-core --no-default-features
+    local dependencies
+    dependencies=$(cargo tree -p guiding-core -e normal --prefix none --format '{p}' | awk '{print $1}' | sort -u | tr '\n' ' ')
+    echo "guiding-core normal dependencies: $dependencies"
+    [ "$dependencies" = "glam guiding-core libm " ] || { echo "guiding-core must depend on glam and libm only" >&2; return 1; }
+}
+
+total=$SECONDS
+stage "format" cargo fmt --all -- --check
+stage "clippy" cargo clippy --workspace --all-targets -- -D warnings
+stage "docs" env RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps
+stage "no_std core" core_dependencies_are_glam_and_libm
+stage "tests" cargo test --workspace
+echo "==> all stages passed in $((SECONDS - total)) s"

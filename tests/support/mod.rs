@@ -1,0 +1,130 @@
+//! Shared pieces of the workspace tests: small scenes and the table access the generic
+//! guide harness needs.
+#![allow(dead_code)]
+
+use glam::{Vec2, Vec3};
+use guiding_core::{
+    DirectionSample, DirectionalDistribution, Frame, Guide, HemisphereGrid, HemisphereGridSettings, HemisphereMapping,
+    PatchLayout, ProbeId, Triangle, UpdateRule,
+};
+
+/// The six inward-facing walls of the box [-1, 1]³, two triangles each.
+pub fn box_walls() -> Vec<Triangle> {
+    let corner = |i: u32| {
+        let axis = |bit: u32| if i & bit == 0 { -1.0 } else { 1.0 };
+        Vec3::new(axis(1), axis(2), axis(4))
+    };
+    // Quads wound counter-clockwise seen from inside the box.
+    let quads = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 2, 6, 4], [1, 5, 7, 3], [0, 4, 5, 1], [2, 3, 7, 6]];
+    quads
+        .iter()
+        .flat_map(|q| {
+            let [a, b, c, d] = q.map(corner);
+            [Triangle::new(a, b, c), Triangle::new(a, c, d)]
+        })
+        .collect()
+}
+
+/// What the generic harness needs from a guide beyond the [`Guide`] trait: regions to
+/// test and direct access to their tables.
+pub trait TableAccess: Guide {
+    /// A few surface points (position, normal) spread over the scene.
+    fn test_points(&self) -> Vec<(Vec3, Vec3)>;
+    /// The regions of [`test_points`](Self::test_points), with their normals.
+    fn test_regions(&self) -> Vec<(Self::Region, Vec3)> {
+        self.test_points()
+            .into_iter()
+            .map(|(p, n)| (self.locate(p, n).expect("the test points carry regions"), n))
+            .collect()
+    }
+    /// Entries per region.
+    fn entry_count(&self) -> usize;
+    /// Overwrites a region's Q table (one value per entry).
+    fn set_entries(&mut self, region: Self::Region, values: &[f32]);
+    /// Q of the entry that holds `direction`.
+    fn entry_value(&self, region: Self::Region, direction: Vec3) -> f32;
+    /// Every Q of every region.
+    fn all_values(&self) -> Vec<f32>;
+    /// The floor no Q may go under.
+    fn floor(&self) -> f32;
+}
+
+/// A 96-probe hemisphere grid over [`box_walls`] with the given mapping and rule.
+pub fn hemisphere_grid(mapping: HemisphereMapping, rule: UpdateRule) -> HemisphereGrid {
+    let settings = HemisphereGridSettings {
+        probe_count: Some(96),
+        layout: PatchLayout { mapping, ..Default::default() },
+        update_rule: rule,
+        ..Default::default()
+    };
+    HemisphereGrid::build(&box_walls(), settings).expect("grid over the box")
+}
+
+impl TableAccess for HemisphereGrid {
+    fn test_points(&self) -> Vec<(Vec3, Vec3)> {
+        // The floor, a wall and the ceiling of the box, each with its inward normal.
+        vec![
+            (Vec3::new(0.1, -1.0, 0.2), Vec3::Y),
+            (Vec3::new(-1.0, 0.3, -0.4), Vec3::X),
+            (Vec3::new(0.5, 1.0, 0.5), -Vec3::Y),
+        ]
+    }
+
+    fn entry_count(&self) -> usize {
+        self.patch_count()
+    }
+
+    fn set_entries(&mut self, region: ProbeId, values: &[f32]) {
+        self.set_q_values(region, values);
+    }
+
+    fn entry_value(&self, region: ProbeId, direction: Vec3) -> f32 {
+        let local = Frame::from_normal(self.probe_normals()[region.0 as usize]).to_local(direction);
+        let patch = self.settings().layout.patch_of(local).expect("direction in the probe's hemisphere");
+        self.q(region, patch)
+    }
+
+    fn all_values(&self) -> Vec<f32> {
+        self.q_values().iter().map(|q| f32::from_bits(q.load(std::sync::atomic::Ordering::Relaxed))).collect()
+    }
+
+    fn floor(&self) -> f32 {
+        self.settings().q_floor
+    }
+}
+
+/// A distribution that samples like `inner` but reports the pdf of `inner` rotated by
+/// `angle` about `axis`: a deliberately wrong pdf that still integrates to one.
+pub struct RotatedPdf<D> {
+    pub inner: D,
+    pub frame: Frame,
+    pub angle: f32,
+}
+
+impl<D: DirectionalDistribution> RotatedPdf<D> {
+    fn rotated(&self, d: Vec3) -> Vec3 {
+        let local = self.frame.to_local(d);
+        let (s, c) = self.angle.sin_cos();
+        self.frame.to_world(Vec3::new(c * local.x - s * local.y, s * local.x + c * local.y, local.z))
+    }
+}
+
+impl<D: DirectionalDistribution> DirectionalDistribution for RotatedPdf<D> {
+    fn sample(&self, u: Vec2) -> DirectionSample {
+        let s = self.inner.sample(u);
+        DirectionSample { direction: s.direction, pdf: self.pdf(s.direction) }
+    }
+
+    fn pdf(&self, direction: Vec3) -> f32 {
+        self.inner.pdf(self.rotated(direction))
+    }
+}
+
+/// FNV-1a 64 over `bytes`, as the guide format's trailing checksum; lets a test alter a
+/// buffer's contents and still reach the field checks behind the checksum.
+pub fn reseal(bytes: &mut [u8]) {
+    let body = bytes.len() - 8;
+    let hash =
+        bytes[..body].iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| (h ^ b as u64).wrapping_mul(0x100_0000_01b3));
+    bytes[body..].copy_from_slice(&hash.to_le_bytes());
+}
