@@ -348,6 +348,25 @@ pub(crate) struct GridStateView<'a> {
     pub(crate) rejected_negative: usize,
 }
 
+/// Σ q_k·w_k in f64 with four independent partial sums, so the additions pipeline
+/// instead of waiting on each other.
+fn weighted_sum(q: &[AtomicU32], weights: &[f32]) -> f64 {
+    let mut partial = [0.0f64; 4];
+    let (q_chunks, w_chunks) = (q.chunks_exact(4), weights.chunks_exact(4));
+    let tail: f64 = q_chunks
+        .remainder()
+        .iter()
+        .zip(w_chunks.remainder())
+        .map(|(q, &w)| atomic_f32::load(q) as f64 * w as f64)
+        .sum();
+    for (q4, w4) in q_chunks.zip(w_chunks) {
+        for lane in 0..4 {
+            partial[lane] += atomic_f32::load(&q4[lane]) as f64 * w4[lane] as f64;
+        }
+    }
+    partial.iter().sum::<f64>() + tail
+}
+
 /// One probe's sampling distribution: its CDF over patches, then uniform in the patch.
 #[derive(Clone, Copy, Debug)]
 pub struct ProbeDistribution<'a> {
@@ -438,14 +457,7 @@ impl Guide for HemisphereGrid {
         };
         let estimate = match self.settings.update_rule.integral {
             IntegralEstimator::BsdfWeightedSum => match lambertian {
-                Some(albedo) => {
-                    let sum: f64 = q
-                        .iter()
-                        .zip(&self.patch_cos_integrals)
-                        .map(|(q, &w)| atomic_f32::load(q) as f64 * w as f64)
-                        .sum();
-                    albedo as f64 / core::f64::consts::PI * sum
-                }
+                Some(albedo) => albedo as f64 / core::f64::consts::PI * weighted_sum(q, &self.patch_cos_integrals),
                 None => {
                     solid_angle
                         * (0..q.len()).map(|k| atomic_f32::load(&q[k]) as f64 * at_center(k) as f64).sum::<f64>()

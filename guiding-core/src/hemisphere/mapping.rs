@@ -34,8 +34,8 @@ impl HemisphereMapping {
             HemisphereMapping::Cylindrical => {
                 let z = uv.x.clamp(0.0, 1.0);
                 let r = libm::sqrtf((1.0 - z * z).max(0.0));
-                let phi = 2.0 * PI * uv.y;
-                Vec3::new(r * libm::cosf(phi), r * libm::sinf(phi), z)
+                let (sin_phi, cos_phi) = libm::sincosf(2.0 * PI * uv.y);
+                Vec3::new(r * cos_phi, r * sin_phi, z)
             }
             HemisphereMapping::ConcentricSquare => {
                 let disk = square_to_disk(uv);
@@ -77,7 +77,8 @@ fn square_to_disk(uv: Vec2) -> Vec2 {
     }
     let (r, phi) =
         if a.abs() > b.abs() { (a, FRAC_PI_4 * (b / a)) } else { (b, 2.0 * FRAC_PI_4 - FRAC_PI_4 * (a / b)) };
-    Vec2::new(r * libm::cosf(phi), r * libm::sinf(phi))
+    let (sin_phi, cos_phi) = libm::sincosf(phi);
+    Vec2::new(r * cos_phi, r * sin_phi)
 }
 
 /// Inverse of [`square_to_disk`].

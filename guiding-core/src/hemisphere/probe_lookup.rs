@@ -12,6 +12,11 @@ use glam::{IVec3, Vec3};
 /// Coordinates are clamped to ±2²⁰ cells so neighbour offsets never overflow.
 const MAX_CELL_COORDINATE: i32 = 1 << 20;
 
+/// Cell edge in probe spacings. A query first searches the 2×2×2 block of cells around
+/// it, which holds every probe within half a cell: 0.75 spacings covers the nearest
+/// probe of most queries on a surface, so the shell search is rarely needed.
+const CELL_SIZE_IN_SPACINGS: f32 = 1.5;
+
 /// The hash grid. See the module documentation for its layout.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ProbeLookup {
@@ -28,7 +33,7 @@ impl ProbeLookup {
         (probe_count.max(1) * 2).next_power_of_two()
     }
 
-    /// Builds the grid over `positions` with cells of `spacing` (clamped to a usable size)
+    /// Builds the grid over `positions` with cells of 1.5 `spacing` (clamped to a usable size)
     /// and returns it with the order to store the probes in: `order[i]` is the index in
     /// `positions` of the probe that goes to slot `i`. The sort is stable, so building
     /// again over already sorted positions returns the identity.
@@ -38,7 +43,7 @@ impl ProbeLookup {
         let extent = positions.iter().fold(0.0f32, |e, &p| e.max((p - origin).max_element()));
         // Cells no smaller than 2⁻²⁰ of the extent (coordinates stay in range) and never
         // zero or non-finite.
-        let mut cell_size = spacing.max(extent / MAX_CELL_COORDINATE as f32);
+        let mut cell_size = (spacing * CELL_SIZE_IN_SPACINGS).max(extent / MAX_CELL_COORDINATE as f32);
         if !(cell_size.is_finite() && cell_size > 0.0) {
             cell_size = if extent > 0.0 && extent.is_finite() { extent } else { 1.0 };
         }
@@ -99,19 +104,39 @@ impl ProbeLookup {
     /// shell r every unvisited probe is at least r·cell_size away, so the search stops
     /// as soon as the best distance is within that, and the result is the exact nearest.
     pub fn nearest(&self, query: Vec3, positions: &[Vec3], accept: impl Fn(usize) -> bool) -> Option<usize> {
-        let center = self.cell_of(query);
         let mut best: Option<(usize, f32)> = None;
-        for ring in 0..=self.max_rings as i32 {
-            self.for_each_shell_cell(center, ring, |cell| {
-                let b = self.bucket(cell) as usize;
-                let (start, end) = (self.bucket_starts[b] as usize, self.bucket_starts[b + 1] as usize);
-                for (probe, position) in positions.iter().enumerate().take(end).skip(start) {
-                    let d2 = position.distance_squared(query);
-                    if best.is_none_or(|(_, best_d2)| d2 < best_d2) && accept(probe) {
-                        best = Some((probe, d2));
-                    }
+        let visit = |cell: IVec3, best: &mut Option<(usize, f32)>| {
+            let b = self.bucket(cell) as usize;
+            let (start, end) = (self.bucket_starts[b] as usize, self.bucket_starts[b + 1] as usize);
+            for (probe, position) in positions.iter().enumerate().take(end).skip(start) {
+                let d2 = position.distance_squared(query);
+                if best.is_none_or(|(_, best_d2)| d2 < best_d2) && accept(probe) {
+                    *best = Some((probe, d2));
                 }
-            });
+            }
+        };
+        // The 2×2×2 block towards the query's nearest cell faces holds every probe
+        // within half a cell of it.
+        let scaled = (query - self.origin) * self.inverse_cell_size;
+        let center = self.cell_of(query);
+        let toward = (scaled - scaled.floor()).cmplt(Vec3::splat(0.5));
+        let step = IVec3::new(
+            if toward.test(0) { -1 } else { 1 },
+            if toward.test(1) { -1 } else { 1 },
+            if toward.test(2) { -1 } else { 1 },
+        );
+        for corner in 0..8 {
+            let offset = IVec3::new(corner & 1, (corner >> 1) & 1, corner >> 2) * step;
+            visit(center + offset, &mut best);
+        }
+        if let Some((probe, d2)) = best {
+            let half = 0.5 * self.cell_size;
+            if d2 <= half * half {
+                return Some(probe);
+            }
+        }
+        for ring in 1..=self.max_rings as i32 {
+            self.for_each_shell_cell(center, ring, |cell| visit(cell, &mut best));
             if let Some((probe, d2)) = best {
                 let reach = ring as f32 * self.cell_size;
                 if d2 <= reach * reach {

@@ -242,3 +242,103 @@ pub(crate) fn decode(bytes: &[u8]) -> Result<HemisphereGrid, Error> {
     crate::Guide::validate(&grid)?;
     Ok(grid)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::Triangle;
+    use crate::guide::Guide;
+    use crate::hemisphere::HemisphereGridSettings;
+
+    fn small_grid() -> HemisphereGrid {
+        let quad = [
+            Triangle::new(Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0)),
+            Triangle::new(Vec3::ZERO, Vec3::new(1.0, 1.0, 0.0), Vec3::Y),
+        ];
+        let settings = HemisphereGridSettings { probe_count: Some(6), ..Default::default() };
+        HemisphereGrid::build(&quad, settings).unwrap()
+    }
+
+    fn reseal(bytes: &mut [u8]) {
+        let body = bytes.len() - 8;
+        let checksum = crate::bytes::fnv1a_64(&bytes[..body]);
+        bytes[body..].copy_from_slice(&checksum.to_le_bytes());
+    }
+
+    fn decode_error(bytes: &[u8]) -> Error {
+        match decode(bytes) {
+            Ok(_) => panic!("the buffer must be rejected"),
+            Err(e) => e,
+        }
+    }
+
+    #[test]
+    fn header_errors_name_what_is_wrong() {
+        let bytes = small_grid().to_bytes();
+        assert_eq!(decode_error(b"not a guide"), Error::Decode(DecodeError::BadMagic));
+        assert_eq!(decode_error(&[]), Error::Decode(DecodeError::BadMagic));
+        let mut version = bytes.clone();
+        version[8] = 9;
+        reseal(&mut version);
+        assert_eq!(decode_error(&version), Error::Decode(DecodeError::UnsupportedVersion { found: 9, supported: 1 }));
+        let mut structure = bytes.clone();
+        structure[12] = 7;
+        reseal(&mut structure);
+        assert_eq!(decode_error(&structure), Error::Decode(DecodeError::WrongStructure { found: 7, expected: 1 }));
+        let mut flipped = bytes.clone();
+        flipped[40] ^= 4;
+        assert!(matches!(decode_error(&flipped), Error::Decode(DecodeError::ChecksumMismatch { .. })));
+    }
+
+    #[test]
+    fn truncation_and_trailing_bytes_are_caught_behind_a_valid_checksum() {
+        let bytes = small_grid().to_bytes();
+        let mut short = bytes[..bytes.len() - 20].to_vec();
+        short.extend_from_slice(&[0; 8]);
+        reseal(&mut short);
+        assert!(matches!(decode_error(&short), Error::Decode(DecodeError::Truncated { .. })));
+        let mut long = bytes[..bytes.len() - 8].to_vec();
+        long.extend_from_slice(&[0; 4 + 8]);
+        reseal(&mut long);
+        assert!(matches!(decode_error(&long), Error::Decode(DecodeError::TrailingBytes { count: 4 })));
+        for cut in 0..bytes.len() {
+            assert!(decode(&bytes[..cut]).is_err());
+        }
+    }
+
+    #[test]
+    fn out_of_range_fields_are_named() {
+        let grid = small_grid();
+        let bytes = grid.to_bytes();
+        let probes = grid.probe_count();
+        let entries = probes * grid.patch_count();
+        // Header 16 bytes, settings 60, state scalars 28: the positions start at byte 104.
+        let positions = 104;
+        let q = positions + probes * 28;
+        let cdf = q + entries * 8;
+        let cases: [(usize, [u8; 4], &str); 4] = [
+            (positions, f32::NAN.to_le_bytes(), "positions"),
+            (positions + probes * 12, 5f32.to_le_bytes(), "normals"),
+            (q + 4 * 5, (-1.0f32).to_le_bytes(), "q"),
+            (cdf + 4, 2.0f32.to_le_bytes(), "cdf"),
+        ];
+        for (offset, value, field) in cases {
+            let mut damaged = bytes.clone();
+            damaged[offset..offset + 4].copy_from_slice(&value);
+            reseal(&mut damaged);
+            match decode_error(&damaged) {
+                Error::Decode(DecodeError::InvalidField { field: named, .. }) => assert_eq!(named, field),
+                other => panic!("{field}: {other:?}"),
+            }
+        }
+        let mut mapping = bytes.clone();
+        mapping[16] = 5;
+        reseal(&mut mapping);
+        assert!(matches!(decode_error(&mapping), Error::Decode(DecodeError::InvalidField { field: "mapping", .. })));
+        let mut alpha = bytes;
+        alpha[52..56].copy_from_slice(&0u32.to_le_bytes());
+        alpha[56..60].copy_from_slice(&7.0f32.to_le_bytes());
+        reseal(&mut alpha);
+        assert!(matches!(decode_error(&alpha), Error::InvalidSetting { name: "learning_rate.alpha", .. }));
+    }
+}
