@@ -1,0 +1,198 @@
+//! # guiding-obvhs
+//!
+//! Lodestar's [`Intersector`] over [obvhs](https://crates.io/crates/obvhs) bounding
+//! volume hierarchies, pure Rust, and watertight: a ray through an edge or vertex shared
+//! by triangles of a closed mesh never slips between them.
+//!
+//! - Triangles are tested with the watertight intersection of Woop et al. 2013
+//!   ([`ShearedRay`]) instead of obvhs's Möller–Trumbore test.
+//! - The hierarchy is built over triangle bounds inflated by 10⁻⁶ of the scene's size:
+//!   obvhs's slab tests are not conservative (a ray leaving a flat node exactly at its
+//!   edge can round to a miss, and direction components under f32::EPSILON are replaced
+//!   by ±EPSILON in the reciprocal), and the margin absorbs both.
+//!
+//! ```
+//! use glam::Vec3;
+//! use guiding_core::{Intersector, Ray, Triangle};
+//! use guiding_obvhs::{BvhKind, ObvhsIntersector};
+//!
+//! let floor = [Triangle::new(Vec3::new(-1.0, 0.0, -1.0), Vec3::new(0.0, 0.0, 1.0), Vec3::new(1.0, 0.0, -1.0))];
+//! let bvh = ObvhsIntersector::build(&floor, BvhKind::default());
+//! let hit = bvh.intersect(&Ray::new(Vec3::new(0.0, 1.0, 0.0), Vec3::NEG_Y)).expect("straight down");
+//! assert_eq!(hit.primitive, 0);
+//! assert!((hit.t - 1.0).abs() < 1e-6);
+//! assert!(bvh.occluded(&Ray::segment(Vec3::Y, Vec3::NEG_Y, 0.0, 2.0)));
+//! ```
+
+mod watertight;
+
+use glam::{Vec3, Vec3A};
+use guiding_core::{Hit, Intersector, Ray, Triangle};
+use obvhs::aabb::Aabb;
+use obvhs::bvh2::Bvh2;
+use obvhs::cwbvh::CwBvh;
+use obvhs::ray::RayHit;
+use obvhs::{Boundable, BvhBuildParams};
+
+pub use watertight::{ShearedRay, TriangleHit};
+
+/// Which obvhs hierarchy to traverse.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum BvhKind {
+    /// Binary BVH (PLOC build with reinsertion).
+    Bvh2,
+    /// Compressed 8-wide BVH (Ylitie et al. 2017), 80-byte nodes, SIMD node tests.
+    #[default]
+    Cwbvh,
+}
+
+/// A triangle's bounds grown by a margin, which is all the builder sees of it.
+struct InflatedBounds {
+    min: Vec3A,
+    max: Vec3A,
+}
+
+impl Boundable for InflatedBounds {
+    fn aabb(&self) -> Aabb {
+        Aabb::new(self.min, self.max)
+    }
+}
+
+/// Relative margin of every triangle's bounds: covers slab-test rounding (a few ulps of
+/// t and of coordinates) and the ±EPSILON reciprocal of nearly axis-parallel rays over
+/// distances up to a few scene diameters.
+const BOUNDS_MARGIN: f32 = 1e-6;
+
+enum Hierarchy {
+    Empty,
+    Bvh2(Bvh2),
+    Cwbvh(CwBvh),
+}
+
+/// Closest-hit and occlusion queries over a triangle list, through an obvhs BVH.
+pub struct ObvhsIntersector {
+    hierarchy: Hierarchy,
+    /// Triangles in BVH order (the order `primitive_indices` gives), for locality.
+    triangles: Vec<[Vec3; 3]>,
+    /// Index in the caller's slice of each triangle in BVH order.
+    original_index: Vec<u32>,
+}
+
+impl ObvhsIntersector {
+    /// Builds a BVH over `triangles` (in parallel with the `parallel` feature). Triangles
+    /// with a non-finite coordinate are left out and never hit; hits report indices
+    /// into `triangles`.
+    pub fn build(triangles: &[Triangle], kind: BvhKind) -> Self {
+        let kept: Vec<u32> = (0..triangles.len() as u32).filter(|&i| triangles[i as usize].is_finite()).collect();
+        if kept.is_empty() {
+            return Self { hierarchy: Hierarchy::Empty, triangles: Vec::new(), original_index: Vec::new() };
+        }
+        let (low, high) = kept
+            .iter()
+            .flat_map(|&i| triangles[i as usize].vertices)
+            .fold((Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)), |(low, high), v| {
+                (low.min(v), high.max(v))
+            });
+        let size = (high - low).length() + low.abs().max(high.abs()).max_element();
+        let margin = Vec3A::splat(BOUNDS_MARGIN * size);
+        let bounds: Vec<InflatedBounds> = kept
+            .iter()
+            .map(|&i| {
+                let [v0, v1, v2] = triangles[i as usize].vertices.map(Vec3A::from);
+                InflatedBounds { min: v0.min(v1).min(v2) - margin, max: v0.max(v1).max(v2) + margin }
+            })
+            .collect();
+        let params = BvhBuildParams::medium_build();
+        let mut build_time = std::time::Duration::default();
+        let (hierarchy, primitive_indices) = match kind {
+            BvhKind::Bvh2 => {
+                let bvh = obvhs::bvh2::builder::build_bvh2(&bounds, params, &mut build_time);
+                let indices = bvh.primitive_indices.clone();
+                (Hierarchy::Bvh2(bvh), indices)
+            }
+            BvhKind::Cwbvh => {
+                let bvh = obvhs::cwbvh::builder::build_cwbvh(&bounds, params, &mut build_time);
+                let indices = bvh.primitive_indices.clone();
+                (Hierarchy::Cwbvh(bvh), indices)
+            }
+        };
+        let original_index: Vec<u32> = primitive_indices.iter().map(|&p| kept[p as usize]).collect();
+        let triangles = original_index.iter().map(|&i| triangles[i as usize].vertices).collect();
+        Self { hierarchy, triangles, original_index }
+    }
+
+    /// Number of triangles in the hierarchy.
+    pub fn triangle_count(&self) -> usize {
+        self.triangles.len()
+    }
+
+    /// The obvhs ray. Its reciprocal direction stays moderate (CWBVH's quantised node
+    /// test loses all precision with huge reciprocals); the bounds margin covers the error.
+    /// Negative zeros become positive: CWBVH orders children by the sign bit of the
+    /// direction but obvhs takes the reciprocal of -0 as negative, and a ray along an axis
+    /// written as (-1, -0, -0) then misses every node.
+    fn bvh_ray(ray: &Ray) -> obvhs::ray::Ray {
+        let direction = Vec3A::from(ray.direction) + Vec3A::ZERO;
+        obvhs::ray::Ray::new(Vec3A::from(ray.origin), direction, ray.t_min, ray.t_max)
+    }
+
+    fn is_valid(ray: &Ray) -> bool {
+        ray.origin.is_finite() && ray.direction.is_finite() && ray.direction != Vec3::ZERO && ray.t_min < ray.t_max
+    }
+}
+
+impl Intersector for ObvhsIntersector {
+    fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        if !Self::is_valid(ray) {
+            return None;
+        }
+        let sheared = ShearedRay::new(ray.origin, ray.direction);
+        // Ties (a ray through a shared edge) go to the lower original index, so the
+        // answer does not depend on traversal order.
+        let mut best: Option<(u32, TriangleHit)> = None;
+        let mut test = |bvh_ray: &obvhs::ray::Ray, slot: usize| -> f32 {
+            let Some(hit) = sheared.intersect(self.triangles[slot], ray.t_min, bvh_ray.tmax) else {
+                return f32::INFINITY;
+            };
+            let index = self.original_index[slot];
+            let closer = match best {
+                None => true,
+                Some((best_index, best_hit)) => hit.t < best_hit.t || (hit.t == best_hit.t && index < best_index),
+            };
+            if closer {
+                best = Some((index, hit));
+            }
+            hit.t
+        };
+        let mut record = RayHit::none();
+        match &self.hierarchy {
+            Hierarchy::Empty => {}
+            Hierarchy::Bvh2(bvh) => {
+                bvh.ray_traverse(Self::bvh_ray(ray), &mut record, &mut test);
+            }
+            Hierarchy::Cwbvh(bvh) => {
+                bvh.ray_traverse(Self::bvh_ray(ray), &mut record, &mut test);
+            }
+        }
+        best.map(|(primitive, hit)| Hit { t: hit.t, primitive, barycentrics: hit.barycentrics })
+    }
+
+    fn occluded(&self, ray: &Ray) -> bool {
+        if !Self::is_valid(ray) {
+            return false;
+        }
+        let sheared = ShearedRay::new(ray.origin, ray.direction);
+        let test = |bvh_ray: &obvhs::ray::Ray, slot: usize| -> f32 {
+            // Strictly inside the segment: a shadow ray ending on the light is not blocked by it.
+            match sheared.intersect(self.triangles[slot], ray.t_min, bvh_ray.tmax) {
+                Some(hit) if hit.t < ray.t_max => hit.t,
+                _ => f32::INFINITY,
+            }
+        };
+        match &self.hierarchy {
+            Hierarchy::Empty => false,
+            Hierarchy::Bvh2(bvh) => !bvh.ray_traverse_miss(Self::bvh_ray(ray), test),
+            Hierarchy::Cwbvh(bvh) => !bvh.ray_traverse_miss(Self::bvh_ray(ray), test),
+        }
+    }
+}
