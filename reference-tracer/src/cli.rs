@@ -1,0 +1,494 @@
+//! The `lodestar` command line: parsing and the `render` and `reference` commands.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use clap::{Args, Parser, Subcommand};
+use guiding_core::{
+    Guide, HemisphereGrid, HemisphereGridSettings, HemisphereMapping, IntegralEstimator, LearningRate, PatchLayout,
+    UpdateRule,
+};
+use guiding_obvhs::{BvhKind, ObvhsIntersector};
+use indicatif::{ProgressBar, ProgressStyle};
+
+use crate::integrator::{IntegratorSettings, Method};
+use crate::metrics::{image_error, ImageError};
+use crate::output::{read_image, write_exr, write_pfm, write_png, Image};
+use crate::render::{render, Budget, RenderSettings, RenderStatistics};
+use crate::scene::Scene;
+
+/// Lodestar: path guiding by reinforcement learning.
+#[derive(Debug, Parser)]
+#[command(name = "lodestar", version, about)]
+pub struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Render a scene; writes IMAGE.exr, IMAGE.png and IMAGE.json (and IMAGE.csv with
+    /// error against time when given a reference).
+    Render(RenderArgs),
+    /// Render a converged reference image with `nee`.
+    Reference(ReferenceArgs),
+}
+
+#[derive(Debug, Args)]
+struct RenderArgs {
+    /// The scene file (scene.json).
+    scene: PathBuf,
+    #[command(flatten)]
+    options: TraceOptions,
+    /// Samples per pixel (default 64 unless --seconds is given).
+    #[arg(long, conflicts_with = "seconds")]
+    spp: Option<u32>,
+    /// Wall-clock seconds of rendering.
+    #[arg(long)]
+    seconds: Option<f64>,
+    /// Output image (.exr); .png and .json are written beside it.
+    #[arg(long)]
+    out: PathBuf,
+    /// Also write IMAGE.pfm.
+    #[arg(long)]
+    pfm: bool,
+    /// Reference image (.exr/.pfm/.hdr) for error against time (IMAGE.csv).
+    #[arg(long)]
+    reference: Option<PathBuf>,
+}
+
+#[derive(Debug, Args)]
+struct ReferenceArgs {
+    /// The scene file (scene.json).
+    scene: PathBuf,
+    /// Samples per pixel.
+    #[arg(long)]
+    spp: u32,
+    /// Output image (.exr).
+    #[arg(long)]
+    out: PathBuf,
+    /// Random seed.
+    #[arg(long, default_value_t = 7)]
+    seed: u64,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    threads: Option<usize>,
+}
+
+/// Options shared by every command that traces paths.
+#[derive(Debug, Args, Clone)]
+pub struct TraceOptions {
+    /// pt, nee, guided or guided-nee.
+    #[arg(long, default_value = "nee", value_parser = parse_method)]
+    integrator: Method,
+    /// The guide structure: hemisphere.
+    #[arg(long, default_value = "hemisphere", value_parser = ["hemisphere"])]
+    guide: String,
+    /// Random seed.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Most scattering vertices per path.
+    #[arg(long, default_value_t = 32)]
+    max_depth: u32,
+    /// Russian roulette after this many vertices.
+    #[arg(long, default_value_t = 4)]
+    rr_depth: u32,
+    /// Probability of sampling the guide instead of the BSDF, in [0, 1].
+    #[arg(long, default_value_t = 0.5)]
+    p_guide: f32,
+    /// Learning rate: simple (α = 1/(1+visits)), region, exponential:ALPHA or global:EXPONENT.
+    #[arg(long, default_value = "simple", value_parser = parse_learning_rate)]
+    learning_rate: LearningRate,
+    /// Integral of Eq. (1): weighted (BSDF-weighted sum), stratified or max.
+    #[arg(long, default_value = "weighted", value_parser = parse_integral)]
+    integral: IntegralEstimator,
+    /// Patches per hemisphere as U×V, e.g. 8x16.
+    #[arg(long, default_value = "8x16", value_parser = parse_patches)]
+    patches: [u32; 2],
+    /// cylindrical or concentric.
+    #[arg(long, default_value = "cylindrical", value_parser = parse_mapping)]
+    mapping: HemisphereMapping,
+    /// Guide memory budget, MiB.
+    #[arg(long, default_value_t = 2.0)]
+    guide_mib: f64,
+    /// BVH: cwbvh or bvh2.
+    #[arg(long, default_value = "cwbvh", value_parser = parse_bvh)]
+    bvh: BvhKind,
+}
+
+fn parse_method(s: &str) -> Result<Method, String> {
+    Method::from_name(s).ok_or_else(|| format!("unknown integrator `{s}` (pt, nee, guided, guided-nee)"))
+}
+
+fn parse_learning_rate(s: &str) -> Result<LearningRate, String> {
+    let number = |v: &str| v.parse::<f32>().map_err(|e| format!("`{v}`: {e}"));
+    match s.split_once(':') {
+        None if s == "simple" => Ok(LearningRate::SimpleAverage),
+        None if s == "region" => Ok(LearningRate::RegionVisits),
+        Some(("exponential", alpha)) => Ok(LearningRate::Exponential { alpha: number(alpha)? }),
+        Some(("global", exponent)) => Ok(LearningRate::Global { exponent: number(exponent)? }),
+        _ => Err(format!("unknown learning rate `{s}` (simple, region, exponential:ALPHA, global:EXPONENT)")),
+    }
+}
+
+fn parse_integral(s: &str) -> Result<IntegralEstimator, String> {
+    match s {
+        "weighted" => Ok(IntegralEstimator::BsdfWeightedSum),
+        "stratified" => Ok(IntegralEstimator::StratifiedPatches),
+        "max" => Ok(IntegralEstimator::MaxEntry),
+        _ => Err(format!("unknown integral estimator `{s}` (weighted, stratified, max)")),
+    }
+}
+
+fn parse_patches(s: &str) -> Result<[u32; 2], String> {
+    let (u, v) = s.split_once('x').ok_or_else(|| format!("`{s}` is not U×V like 8x16"))?;
+    let parse = |t: &str| t.parse::<u32>().map_err(|e| format!("`{t}`: {e}"));
+    Ok([parse(u)?, parse(v)?])
+}
+
+fn parse_mapping(s: &str) -> Result<HemisphereMapping, String> {
+    match s {
+        "cylindrical" => Ok(HemisphereMapping::Cylindrical),
+        "concentric" => Ok(HemisphereMapping::ConcentricSquare),
+        _ => Err(format!("unknown mapping `{s}` (cylindrical, concentric)")),
+    }
+}
+
+fn parse_bvh(s: &str) -> Result<BvhKind, String> {
+    match s {
+        "cwbvh" => Ok(BvhKind::Cwbvh),
+        "bvh2" => Ok(BvhKind::Bvh2),
+        _ => Err(format!("unknown BVH `{s}` (cwbvh, bvh2)")),
+    }
+}
+
+impl TraceOptions {
+    fn guide_settings(&self) -> Result<HemisphereGridSettings, String> {
+        if !(self.guide_mib.is_finite() && self.guide_mib > 0.0) {
+            return Err(format!("--guide-mib {} must be positive", self.guide_mib));
+        }
+        if !(0.0..=1.0).contains(&self.p_guide) {
+            return Err(format!("--p-guide {} must be in [0, 1]", self.p_guide));
+        }
+        let settings = HemisphereGridSettings {
+            budget_bytes: (self.guide_mib * (1 << 20) as f64) as usize,
+            layout: PatchLayout { mapping: self.mapping, resolution: self.patches },
+            update_rule: UpdateRule { learning_rate: self.learning_rate, integral: self.integral },
+            ..Default::default()
+        };
+        settings.validate().map_err(|e| e.to_string())?;
+        Ok(settings)
+    }
+
+    fn integrator(&self) -> IntegratorSettings {
+        IntegratorSettings {
+            method: self.integrator,
+            max_depth: self.max_depth.max(1),
+            rr_depth: self.rr_depth,
+            guide_probability: self.p_guide,
+            learn: true,
+        }
+    }
+}
+
+/// Timings of the set-up stages, seconds.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct SetupTimes {
+    /// Reading and checking the scene.
+    pub load: f64,
+    /// Building the BVH.
+    pub bvh: f64,
+    /// Placing probes and allocating the guide.
+    pub guide: f64,
+}
+
+/// A scene loaded with its intersector and, for guided methods, its guide.
+pub struct Prepared {
+    /// The scene.
+    pub scene: Scene,
+    /// Its intersector.
+    pub intersector: ObvhsIntersector,
+    /// The guide, for guided methods.
+    pub guide: Option<HemisphereGrid>,
+    /// Set-up timings.
+    pub times: SetupTimes,
+}
+
+/// Loads a scene, builds the BVH and (when `guide` is given) the hemisphere grid.
+pub fn prepare(path: &Path, bvh: BvhKind, guide: Option<HemisphereGridSettings>) -> Result<Prepared, String> {
+    let start = Instant::now();
+    let scene = Scene::load(path).map_err(|e| e.to_string())?;
+    let load = start.elapsed().as_secs_f64();
+    let start = Instant::now();
+    let intersector = ObvhsIntersector::build(&scene.triangles, bvh);
+    let bvh_seconds = start.elapsed().as_secs_f64();
+    let start = Instant::now();
+    let guide = match guide {
+        Some(settings) => Some(HemisphereGrid::build(&scene.triangles, settings).map_err(|e| format!("guide: {e}"))?),
+        None => None,
+    };
+    let times = SetupTimes { load, bvh: bvh_seconds, guide: start.elapsed().as_secs_f64() };
+    Ok(Prepared { scene, intersector, guide, times })
+}
+
+fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool, String> {
+    let mut builder = rayon::ThreadPoolBuilder::new();
+    if let Some(n) = threads {
+        if n == 0 {
+            return Err("--threads must be at least 1".into());
+        }
+        builder = builder.num_threads(n);
+    }
+    builder.build().map_err(|e| format!("cannot start worker threads: {e}"))
+}
+
+fn progress_bar(budget: Budget) -> ProgressBar {
+    let (length, template) = match budget {
+        Budget::SamplesPerPixel(spp) => (spp as u64, "{bar:40} {pos}/{len} spp  {elapsed_precise} ETA {eta}"),
+        Budget::Seconds(s) => ((s * 1000.0) as u64, "{bar:40} {msg}  {elapsed_precise} ETA {eta}"),
+    };
+    let bar = ProgressBar::new(length);
+    if let Ok(style) = ProgressStyle::with_template(template) {
+        bar.set_style(style);
+    }
+    bar
+}
+
+/// One point of an error-against-time curve.
+#[derive(Clone, Copy, Debug)]
+pub struct Checkpoint {
+    /// Seconds of rendering.
+    pub seconds: f64,
+    /// Samples per pixel reached.
+    pub spp: u32,
+    /// Path counters at that time.
+    pub counters: crate::integrator::PathCounters,
+    /// Error against the reference.
+    pub error: ImageError,
+}
+
+/// Renders a prepared scene, recording the error against `reference` after passes
+/// 1, 2, 4, 8, … and the last.
+pub fn render_prepared(
+    prepared: &mut Prepared,
+    settings: &RenderSettings,
+    reference: Option<&Image>,
+    show_progress: bool,
+) -> (Image, RenderStatistics, Vec<Checkpoint>) {
+    let (width, height) = (prepared.scene.camera.width as usize, prepared.scene.camera.height as usize);
+    let bar = if show_progress { progress_bar(settings.budget) } else { ProgressBar::hidden() };
+    let mut checkpoints = Vec::new();
+    let guide = if settings.integrator.method.uses_guide() { prepared.guide.as_mut() } else { None };
+    let (image, statistics) = render(&prepared.scene, &prepared.intersector, guide, settings, |progress| {
+        match settings.budget {
+            Budget::SamplesPerPixel(_) => bar.set_position(progress.passes as u64),
+            Budget::Seconds(_) => {
+                bar.set_position((progress.seconds * 1000.0) as u64);
+                bar.set_message(format!("{} spp", progress.passes));
+            }
+        }
+        if let Some(reference) = reference {
+            if progress.passes.is_power_of_two() {
+                if let Some(error) = image_error(&progress.image(width, height), reference) {
+                    checkpoints.push(Checkpoint {
+                        seconds: progress.seconds,
+                        spp: progress.passes,
+                        counters: progress.counters,
+                        error,
+                    });
+                }
+            }
+        }
+    });
+    bar.finish_and_clear();
+    if let Some(reference) = reference {
+        if checkpoints.last().is_none_or(|c| c.spp != statistics.passes) {
+            if let Some(error) = image_error(&image, reference) {
+                checkpoints.push(Checkpoint {
+                    seconds: statistics.render_seconds,
+                    spp: statistics.passes,
+                    counters: statistics.counters,
+                    error,
+                });
+            }
+        }
+    }
+    (image, statistics, checkpoints)
+}
+
+fn sibling(path: &Path, extension: &str) -> PathBuf {
+    path.with_extension(extension)
+}
+
+fn write_outputs(out: &Path, image: &Image, pfm: bool) -> Result<(), String> {
+    if let Some(folder) = out.parent().filter(|f| !f.as_os_str().is_empty()) {
+        std::fs::create_dir_all(folder).map_err(|e| format!("cannot create {}: {e}", folder.display()))?;
+    }
+    write_exr(out, image)?;
+    write_png(&sibling(out, "png"), image)?;
+    if pfm {
+        write_pfm(&sibling(out, "pfm"), image)?;
+    }
+    Ok(())
+}
+
+/// The statistics JSON written beside every render.
+pub fn statistics_json(
+    method: Method,
+    prepared: &Prepared,
+    statistics: &RenderStatistics,
+    image: &Image,
+) -> serde_json::Value {
+    let c = &statistics.counters;
+    let seconds = statistics.render_seconds.max(1e-9);
+    let mean = image.mean();
+    let guide = prepared.guide.as_ref().filter(|_| method.uses_guide()).map(|g| {
+        let s = g.stats();
+        serde_json::json!({
+            "structure": "hemisphere",
+            "probes": s.regions,
+            "patches_per_probe": s.entries_per_region,
+            "memory_bytes": s.memory_bytes,
+            "accepted_updates": s.accepted_updates,
+            "visited_patches": s.visited_entries,
+            "rejected_non_finite": s.rejected_non_finite,
+            "rejected_negative": s.rejected_negative,
+            "epochs": s.epochs,
+        })
+    });
+    serde_json::json!({
+        "scene": prepared.scene.path.display().to_string(),
+        "method": method.name(),
+        "width": image.width,
+        "height": image.height,
+        "passes": statistics.passes,
+        "spp": statistics.passes,
+        "paths": c.paths,
+        "rays": c.rays,
+        "nonzero_share": c.nonzero_paths as f64 / c.paths.max(1) as f64,
+        "mean_path_length": c.vertices as f64 / c.paths.max(1) as f64,
+        "paths_per_second": c.paths as f64 / seconds,
+        "rays_per_second": c.rays as f64 / seconds,
+        "mean_radiance": [mean.x, mean.y, mean.z],
+        "time": {
+            "load_seconds": prepared.times.load,
+            "bvh_seconds": prepared.times.bvh,
+            "guide_build_seconds": prepared.times.guide,
+            "render_seconds": statistics.render_seconds,
+            "guide_rebuild_seconds": statistics.guide_rebuild_seconds,
+            "tracing_seconds": statistics.render_seconds - statistics.guide_rebuild_seconds,
+        },
+        "guide": guide,
+        "warnings": prepared.scene.warnings,
+        "pass_means": statistics.pass_means,
+    })
+}
+
+fn write_checkpoints_csv(path: &Path, method: Method, checkpoints: &[Checkpoint]) -> Result<(), String> {
+    let mut text = String::from("method,seconds,spp,paths_per_second,nonzero_share,mean_path_length,relmse,mse,mape\n");
+    for c in checkpoints {
+        let paths = c.counters.paths.max(1) as f64;
+        text += &format!(
+            "{},{:.6},{},{:.1},{:.6},{:.4},{:.6e},{:.6e},{:.6e}\n",
+            method.name(),
+            c.seconds,
+            c.spp,
+            c.counters.paths as f64 / c.seconds.max(1e-9),
+            c.counters.nonzero_paths as f64 / paths,
+            c.counters.vertices as f64 / paths,
+            c.error.relmse,
+            c.error.mse,
+            c.error.mape
+        );
+    }
+    std::fs::write(path, text).map_err(|e| format!("cannot write {}: {e}", path.display()))
+}
+
+fn run_render(args: &RenderArgs) -> Result<(), String> {
+    let options = &args.options;
+    let guide_settings = options.guide_settings()?;
+    let budget = match (args.spp, args.seconds) {
+        (Some(0), _) => return Err("--spp must be at least 1".into()),
+        (Some(spp), _) => Budget::SamplesPerPixel(spp),
+        (None, Some(s)) if s.is_finite() && s > 0.0 => Budget::Seconds(s),
+        (None, Some(s)) => return Err(format!("--seconds {s} must be positive")),
+        (None, None) => Budget::SamplesPerPixel(64),
+    };
+    let reference = match &args.reference {
+        Some(path) => Some(read_image(path).map_err(|e| format!("{}: {e}", path.display()))?),
+        None => None,
+    };
+    let pool = thread_pool(options.threads)?;
+    let mut prepared = prepare(&args.scene, options.bvh, options.integrator.uses_guide().then_some(guide_settings))?;
+    for warning in &prepared.scene.warnings {
+        eprintln!("warning: {}: {warning}", args.scene.display());
+    }
+    if let Some(reference) = &reference {
+        let camera = &prepared.scene.camera;
+        if (reference.width, reference.height) != (camera.width as usize, camera.height as usize) {
+            return Err(format!(
+                "reference is {}×{}, the scene renders {}×{}",
+                reference.width, reference.height, camera.width, camera.height
+            ));
+        }
+    }
+    let settings = RenderSettings { integrator: options.integrator(), budget, seed: options.seed };
+    let (image, statistics, checkpoints) =
+        pool.install(|| render_prepared(&mut prepared, &settings, reference.as_ref(), true));
+    write_outputs(&args.out, &image, args.pfm)?;
+    let json = statistics_json(options.integrator, &prepared, &statistics, &image);
+    let json_path = sibling(&args.out, "json");
+    std::fs::write(&json_path, serde_json::to_string_pretty(&json).unwrap_or_default())
+        .map_err(|e| format!("cannot write {}: {e}", json_path.display()))?;
+    if reference.is_some() {
+        write_checkpoints_csv(&sibling(&args.out, "csv"), options.integrator, &checkpoints)?;
+    }
+    let c = &statistics.counters;
+    eprintln!(
+        "{}: {} spp in {:.2} s, {:.0} paths/s, non-zero share {:.3}, mean path length {:.2}{}",
+        options.integrator.name(),
+        statistics.passes,
+        statistics.render_seconds,
+        c.paths as f64 / statistics.render_seconds.max(1e-9),
+        c.nonzero_paths as f64 / c.paths.max(1) as f64,
+        c.vertices as f64 / c.paths.max(1) as f64,
+        checkpoints.last().map(|c| format!(", relMSE {:.4e}", c.error.relmse)).unwrap_or_default()
+    );
+    eprintln!("wrote {}", args.out.display());
+    Ok(())
+}
+
+fn run_reference(args: &ReferenceArgs) -> Result<(), String> {
+    if args.spp == 0 {
+        return Err("--spp must be at least 1".into());
+    }
+    let pool = thread_pool(args.threads)?;
+    let mut prepared = prepare(&args.scene, BvhKind::default(), None)?;
+    let integrator = IntegratorSettings { method: Method::Nee, ..Default::default() };
+    let settings = RenderSettings { integrator, budget: Budget::SamplesPerPixel(args.spp), seed: args.seed };
+    let (image, statistics, _) = pool.install(|| render_prepared(&mut prepared, &settings, None, true));
+    write_outputs(&args.out, &image, false)?;
+    let json = statistics_json(Method::Nee, &prepared, &statistics, &image);
+    std::fs::write(sibling(&args.out, "json"), serde_json::to_string_pretty(&json).unwrap_or_default())
+        .map_err(|e| format!("cannot write statistics: {e}"))?;
+    eprintln!(
+        "reference: {} spp in {:.1} s, wrote {}",
+        statistics.passes,
+        statistics.render_seconds,
+        args.out.display()
+    );
+    Ok(())
+}
+
+impl Cli {
+    /// Runs the parsed command.
+    pub fn run(&self) -> Result<(), String> {
+        match &self.command {
+            Command::Render(args) => run_render(args),
+            Command::Reference(args) => run_reference(args),
+        }
+    }
+}

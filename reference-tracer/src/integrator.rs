@@ -1,0 +1,436 @@
+//! The path tracing integrators: `pt` (BSDF sampling), `nee` (plus next-event estimation
+//! with MIS), `guided` (Dahm & Keller's Fig. 2E: sample the guide with probability
+//! p_guide, else the BSDF, weighted by the one-sample MIS mixture pdf) and `guided-nee`
+//! (both, with light samples MIS-weighted against the mixture). Guided paths also learn:
+//! after each path every vertex with a guide region is updated by Eq. (1).
+
+use glam::{Vec2, Vec3};
+use guiding_core::{Guide, HemisphereGrid, Intersector, Lambertian, Pcg32, ProbeId, Ray, ScatteringFunction};
+
+use crate::color::luminance;
+use crate::material::{Material, ShadingFrame, Surface};
+use crate::sampling::power_heuristic;
+use crate::scene::Scene;
+
+/// Which estimator to run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Method {
+    /// Unidirectional path tracing with BSDF sampling only.
+    Pt,
+    /// BSDF sampling plus next-event estimation, combined by the power heuristic.
+    Nee,
+    /// BSDF and guide sampling (one-sample MIS), learning online.
+    Guided,
+    /// Guided plus next-event estimation.
+    GuidedNee,
+}
+
+impl Method {
+    /// Every method, in the order the command line lists them.
+    pub const ALL: [Method; 4] = [Method::Pt, Method::Nee, Method::Guided, Method::GuidedNee];
+
+    /// The command-line name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Pt => "pt",
+            Method::Nee => "nee",
+            Method::Guided => "guided",
+            Method::GuidedNee => "guided-nee",
+        }
+    }
+
+    /// Parses a command-line name.
+    pub fn from_name(name: &str) -> Option<Method> {
+        Method::ALL.into_iter().find(|m| m.name() == name)
+    }
+
+    /// Whether light sources are sampled directly.
+    pub fn uses_nee(self) -> bool {
+        matches!(self, Method::Nee | Method::GuidedNee)
+    }
+
+    /// Whether directions are drawn from a learned guide.
+    pub fn uses_guide(self) -> bool {
+        matches!(self, Method::Guided | Method::GuidedNee)
+    }
+}
+
+/// Settings of a path.
+#[derive(Clone, Copy, Debug)]
+pub struct IntegratorSettings {
+    /// The estimator.
+    pub method: Method,
+    /// Most scattering vertices per path.
+    pub max_depth: u32,
+    /// Russian roulette starts after this many vertices.
+    pub rr_depth: u32,
+    /// Probability of sampling the guide instead of the BSDF where a guide region exists.
+    pub guide_probability: f32,
+    /// Whether guided paths update the guide.
+    pub learn: bool,
+}
+
+impl Default for IntegratorSettings {
+    fn default() -> Self {
+        Self { method: Method::Nee, max_depth: 32, rr_depth: 4, guide_probability: 0.5, learn: true }
+    }
+}
+
+/// Counters of one or many paths.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PathCounters {
+    /// Paths traced.
+    pub paths: u64,
+    /// Paths whose contribution is non-zero.
+    pub nonzero_paths: u64,
+    /// Closest-hit and shadow rays cast.
+    pub rays: u64,
+    /// Surface vertices (hits) over all paths.
+    pub vertices: u64,
+    /// Guide updates rejected (NaN, infinite or negative targets).
+    pub rejected_updates: u64,
+}
+
+impl std::ops::Add for PathCounters {
+    type Output = PathCounters;
+    fn add(self, o: PathCounters) -> PathCounters {
+        PathCounters {
+            paths: self.paths + o.paths,
+            nonzero_paths: self.nonzero_paths + o.nonzero_paths,
+            rays: self.rays + o.rays,
+            vertices: self.vertices + o.vertices,
+            rejected_updates: self.rejected_updates + o.rejected_updates,
+        }
+    }
+}
+
+/// What a vertex knows about the radiance arriving along its sampled direction, for
+/// the update of Eq. (1) once the path is complete.
+#[derive(Clone, Copy, Debug)]
+enum Onward {
+    /// The guide's estimate of ∫ Q fs cos at the next vertex.
+    Integral(f32),
+    /// No estimate there (a delta surface or no region): carry the next vertex's target,
+    /// scaled by its sampled throughput factor (a one-sample estimate of the integral).
+    Carry(f32),
+    /// The path ended at the next vertex or escaped.
+    End,
+}
+
+/// One path vertex as the learning update sees it.
+#[derive(Clone, Copy, Debug)]
+pub struct LearningVertex {
+    region: Option<ProbeId>,
+    direction: Vec3,
+    emitted: f32,
+    onward: Onward,
+}
+
+/// Per-thread scratch space reused across paths (no allocation per path).
+#[derive(Default)]
+pub struct PathScratch {
+    vertices: Vec<LearningVertex>,
+}
+
+/// A BSDF as the guide's integral estimate sees it: scalar fs·cos (luminance).
+struct ScalarBsdf<'a> {
+    material: &'a Material,
+    shading: &'a ShadingFrame,
+}
+
+impl ScatteringFunction for ScalarBsdf<'_> {
+    fn eval_cos(&self, wi: Vec3, wo: Vec3) -> f32 {
+        luminance(self.material.eval(self.shading, wo, wi))
+    }
+}
+
+/// Traces paths through a scene.
+pub struct PathTracer<'a, I: Intersector> {
+    scene: &'a Scene,
+    intersector: &'a I,
+    guide: Option<&'a HemisphereGrid>,
+    settings: IntegratorSettings,
+    ray_epsilon: f32,
+    environment_choice: f32,
+}
+
+impl<'a, I: Intersector> PathTracer<'a, I> {
+    /// A tracer; `guide` is used by the guided methods only.
+    pub fn new(
+        scene: &'a Scene,
+        intersector: &'a I,
+        guide: Option<&'a HemisphereGrid>,
+        settings: IntegratorSettings,
+    ) -> Self {
+        let (low, high) = scene
+            .triangles
+            .iter()
+            .flat_map(|t| t.vertices)
+            .fold((Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)), |(l, h), v| (l.min(v), h.max(v)));
+        let ray_epsilon = 1e-5 * (high - low).length().max(f32::MIN_POSITIVE);
+        let environment_choice = match (scene.environment.is_some(), scene.lights.is_empty()) {
+            (true, true) => 1.0,
+            (true, false) => 0.5,
+            (false, _) => 0.0,
+        };
+        let guide = if settings.method.uses_guide() { guide } else { None };
+        Self { scene, intersector, guide, settings, ray_epsilon, environment_choice }
+    }
+
+    /// Offset of a ray leaving `point` on the side of `normal` that `direction` points to:
+    /// relative to the scene size and to the magnitude of the coordinates.
+    fn spawn(&self, point: Vec3, normal: Vec3, direction: Vec3) -> Vec3 {
+        let epsilon = self.ray_epsilon + 1e-6 * point.abs().max_element();
+        let side = if normal.dot(direction) >= 0.0 { 1.0 } else { -1.0 };
+        point + normal * (side * epsilon)
+    }
+
+    /// Density with which next-event estimation produces direction `wi` towards an
+    /// emitter hit at `point` on `triangle`, seen from `from`.
+    fn light_pdf(&self, triangle: u32, from: Vec3, point: Vec3, normal: Vec3) -> f32 {
+        (1.0 - self.environment_choice) * self.scene.lights.pdf(triangle, from, point, normal)
+    }
+
+    /// Radiance arriving along `ray` (one sample), adding its counters to `counters`.
+    pub fn radiance(
+        &self,
+        mut ray: Ray,
+        rng: &mut Pcg32,
+        scratch: &mut PathScratch,
+        counters: &mut PathCounters,
+    ) -> Vec3 {
+        let settings = &self.settings;
+        let learning = settings.learn && self.guide.is_some();
+        scratch.vertices.clear();
+        let mut radiance = Vec3::ZERO;
+        let mut throughput = Vec3::ONE;
+        // The previous vertex: its position, the pdf of the direction it sampled, and
+        // whether that direction came from a delta lobe.
+        let mut previous: Option<(Vec3, f32, bool)> = None;
+        counters.paths += 1;
+        for depth in 0..settings.max_depth {
+            counters.rays += 1;
+            let Some(hit) = self.intersector.intersect(&ray) else {
+                if let Some(environment) = &self.scene.environment {
+                    let emitted = environment.radiance(ray.direction);
+                    let weight = match previous {
+                        Some((_, pdf, false)) if settings.method.uses_nee() => {
+                            power_heuristic(pdf, self.environment_choice * environment.pdf(ray.direction))
+                        }
+                        _ => 1.0,
+                    };
+                    radiance += throughput * emitted * weight;
+                    if let Some(last) = scratch.vertices.last_mut() {
+                        last.emitted = luminance(emitted);
+                    }
+                }
+                break;
+            };
+            counters.vertices += 1;
+            let triangle = &self.scene.triangles[hit.primitive as usize];
+            let material = self.scene.material(hit.primitive);
+            let point = triangle.point(hit.barycentrics);
+            let geometric_normal = triangle.normal().unwrap_or(Vec3::Z);
+            let wo = -ray.direction;
+
+            // Emission from the front face.
+            if material.is_emissive() && geometric_normal.dot(wo) > 0.0 {
+                let weight = match previous {
+                    Some((from, pdf, false)) if settings.method.uses_nee() => {
+                        power_heuristic(pdf, self.light_pdf(hit.primitive, from, point, geometric_normal))
+                    }
+                    _ => 1.0,
+                };
+                radiance += throughput * material.emission * weight;
+                if let Some(last) = scratch.vertices.last_mut() {
+                    last.emitted = luminance(material.emission);
+                }
+            }
+            let shading = material.shading_frame(geometric_normal, wo);
+            let normal = shading.frame.normal;
+            let delta = material.is_delta();
+            let region = match self.guide {
+                Some(guide) if !delta => guide.locate(point, normal),
+                _ => None,
+            };
+            if learning && !delta {
+                if let (Some(last), Some(region), Some(guide)) = (scratch.vertices.last_mut(), region, self.guide) {
+                    let estimate = match material.surface {
+                        Surface::Diffuse { albedo } => guide.estimate_integral(
+                            region,
+                            wo,
+                            &Lambertian { normal, albedo: luminance(albedo) },
+                            rng.next_vec2(),
+                        ),
+                        _ => guide.estimate_integral(
+                            region,
+                            wo,
+                            &ScalarBsdf { material, shading: &shading },
+                            rng.next_vec2(),
+                        ),
+                    };
+                    last.onward = Onward::Integral(estimate);
+                }
+            }
+            if depth + 1 >= settings.max_depth {
+                break;
+            }
+
+            // Next-event estimation.
+            if settings.method.uses_nee() && !delta {
+                radiance += throughput
+                    * self.direct_light(material, &shading, point, geometric_normal, wo, region, rng, counters);
+            }
+
+            // Choose the next direction: the guide with probability p_guide where a region
+            // exists, the BSDF otherwise; weight by the mixture pdf.
+            let (u_choice, u_lobe, u) = (rng.next_f32(), rng.next_f32(), rng.next_vec2());
+            let (wi, factor, pdf, sampled_delta) = if delta {
+                let Some(s) = material.sample(&shading, wo, u, u_lobe) else { break };
+                (s.wi, s.weight, s.pdf, true)
+            } else {
+                let guide_probability = if region.is_some() { settings.guide_probability } else { 0.0 };
+                let (wi, f) = match (self.guide, region) {
+                    (Some(guide), Some(region)) if u_choice < guide_probability => {
+                        let s = guide.sample(region, u);
+                        (s.direction, material.eval(&shading, wo, s.direction))
+                    }
+                    _ => {
+                        let Some(s) = material.sample(&shading, wo, u, u_lobe) else { break };
+                        (s.wi, s.weight * s.pdf)
+                    }
+                };
+                let pdf = self.scatter_pdf(material, &shading, wo, wi, region);
+                if !(pdf.is_finite() && pdf > 0.0) || f == Vec3::ZERO {
+                    break;
+                }
+                (wi, f / pdf, pdf, false)
+            };
+            if !factor.is_finite() {
+                break;
+            }
+            throughput *= factor;
+            if depth + 1 >= settings.rr_depth {
+                let survival = throughput.max_element().min(0.95);
+                if survival <= 0.0 || rng.next_f32() >= survival {
+                    break;
+                }
+                throughput /= survival;
+            }
+            // Only directions that are actually traced are learned from. A vertex without
+            // an estimate of its own (delta, or no region) passes its target back to the
+            // previous one, scaled by its throughput factor.
+            if learning {
+                if delta || region.is_none() {
+                    if let Some(last) = scratch.vertices.last_mut() {
+                        last.onward = Onward::Carry(luminance(factor));
+                    }
+                }
+                scratch.vertices.push(LearningVertex { region, direction: wi, emitted: 0.0, onward: Onward::End });
+            }
+            ray = Ray::new(self.spawn(point, geometric_normal, wi), wi);
+            previous = Some((point, pdf, sampled_delta));
+        }
+        if radiance.max_element() > 0.0 {
+            counters.nonzero_paths += 1;
+        }
+        if learning {
+            counters.rejected_updates += self.learn_from_path(&scratch.vertices);
+        }
+        radiance
+    }
+
+    /// The pdf of scattering `wi` from `wo`: the BSDF's, mixed with the guide's where a
+    /// region exists.
+    fn scatter_pdf(
+        &self,
+        material: &Material,
+        shading: &ShadingFrame,
+        wo: Vec3,
+        wi: Vec3,
+        region: Option<ProbeId>,
+    ) -> f32 {
+        let bsdf_pdf = material.pdf(shading, wo, wi);
+        match (self.guide, region) {
+            (Some(guide), Some(region)) => {
+                let p = self.settings.guide_probability;
+                p * guide.pdf(region, wi) + (1.0 - p) * bsdf_pdf
+            }
+            _ => bsdf_pdf,
+        }
+    }
+
+    /// One light sample (area light or environment), MIS-weighted against scattering.
+    #[allow(clippy::too_many_arguments)]
+    fn direct_light(
+        &self,
+        material: &Material,
+        shading: &ShadingFrame,
+        point: Vec3,
+        geometric_normal: Vec3,
+        wo: Vec3,
+        region: Option<ProbeId>,
+        rng: &mut Pcg32,
+        counters: &mut PathCounters,
+    ) -> Vec3 {
+        let (u_choice, u_select, u) = (rng.next_f32(), rng.next_f32(), rng.next_vec2());
+        let (wi, emitted, light_pdf, distance) = if u_choice < self.environment_choice {
+            let Some(environment) = &self.scene.environment else { return Vec3::ZERO };
+            let Some(s) = environment.sample(u) else { return Vec3::ZERO };
+            (s.wi, s.radiance, self.environment_choice * s.pdf, f32::INFINITY)
+        } else {
+            let Some(s) = self.scene.lights.sample(&self.scene.triangles, point, u_select, u) else {
+                return Vec3::ZERO;
+            };
+            (s.wi, s.radiance, (1.0 - self.environment_choice) * s.pdf, s.distance)
+        };
+        if !(light_pdf.is_finite() && light_pdf > 0.0) || emitted == Vec3::ZERO {
+            return Vec3::ZERO;
+        }
+        let f = material.eval(shading, wo, wi);
+        if f == Vec3::ZERO {
+            return Vec3::ZERO;
+        }
+        let origin = self.spawn(point, geometric_normal, wi);
+        let t_max = if distance.is_finite() {
+            (distance - 2.0 * self.ray_epsilon).max(0.0) * (1.0 - 1e-5)
+        } else {
+            f32::INFINITY
+        };
+        counters.rays += 1;
+        if self.intersector.occluded(&Ray::segment(origin, wi, 0.0, t_max)) {
+            return Vec3::ZERO;
+        }
+        let weight = power_heuristic(light_pdf, self.scatter_pdf(material, shading, wo, wi, region));
+        f * emitted * (weight / light_pdf)
+    }
+
+    /// Applies Eq. (1) along a finished path, last vertex first; returns the number of
+    /// rejected targets.
+    fn learn_from_path(&self, vertices: &[LearningVertex]) -> u64 {
+        let Some(guide) = self.guide else { return 0 };
+        let mut rejected = 0;
+        let mut next_target = 0.0f32;
+        for vertex in vertices.iter().rev() {
+            let onward = match vertex.onward {
+                Onward::Integral(estimate) => estimate,
+                Onward::Carry(factor) => factor * next_target,
+                Onward::End => 0.0,
+            };
+            let target = vertex.emitted + onward;
+            if let Some(region) = vertex.region {
+                if guide.update(region, vertex.direction, target) != guiding_core::UpdateOutcome::Accepted {
+                    rejected += (!target.is_finite() || target < 0.0) as u64;
+                }
+            }
+            next_target = target;
+        }
+        rejected
+    }
+
+    /// Image-space jitter plus camera ray for pixel (x, y).
+    pub fn camera_ray(&self, x: u32, y: u32, rng: &mut Pcg32) -> Ray {
+        let jitter = rng.next_vec2();
+        self.scene.camera.ray(Vec2::new(x as f32 + jitter.x, y as f32 + jitter.y))
+    }
+}

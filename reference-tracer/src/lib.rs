@@ -1,0 +1,21 @@
+//! # reference-tracer
+//!
+//! Lodestar's reference CPU path tracer: it reads a scene (SCENE_FORMAT.md), builds an
+//! obvhs intersector, traces paths unguided (`pt`, `nee`) or guided by guiding-core's
+//! [`HemisphereGrid`](guiding_core::HemisphereGrid) (`guided`, `guided-nee`), learns
+//! while it renders, and reports images, statistics and error against run time.
+//!
+//! The data path runs one way: scene → intersector → integrator → guide → image.
+
+pub mod camera;
+pub mod cli;
+pub mod color;
+pub mod environment;
+pub mod integrator;
+pub mod lights;
+pub mod material;
+pub mod metrics;
+pub mod output;
+pub mod render;
+pub mod sampling;
+pub mod scene;

@@ -1,0 +1,106 @@
+//! Area lights: every triangle whose material emits, picked in proportion to power and
+//! sampled uniformly by area.
+
+use glam::{Vec2, Vec3};
+use guiding_core::cdf::{build_cdf, cdf_probability, sample_cdf};
+use guiding_core::{square_to_triangle_barycentrics, Triangle};
+
+use crate::color::luminance;
+
+/// A point drawn on a light, seen from a shading point.
+#[derive(Clone, Copy, Debug)]
+pub struct LightSample {
+    /// Unit direction from the shading point to the light point.
+    pub wi: Vec3,
+    /// Distance to the light point.
+    pub distance: f32,
+    /// Emitted radiance towards the shading point (zero from the back face).
+    pub radiance: Vec3,
+    /// Density of `wi` per steradian, including the choice of this light.
+    pub pdf: f32,
+}
+
+/// The emissive triangles of a scene.
+#[derive(Clone, Debug, Default)]
+pub struct AreaLights {
+    /// Scene triangle index of each light.
+    triangles: Vec<u32>,
+    emission: Vec<Vec3>,
+    areas: Vec<f32>,
+    /// Light index of each scene triangle (`u32::MAX` when it does not emit).
+    light_of_triangle: Vec<u32>,
+    /// Power CDF over lights.
+    cdf: Vec<f32>,
+}
+
+impl AreaLights {
+    /// Collects the triangles with non-zero emission and area.
+    pub fn new(triangles: &[Triangle], emission_of_triangle: impl Fn(usize) -> Vec3) -> Self {
+        let mut lights = AreaLights { light_of_triangle: vec![u32::MAX; triangles.len()], ..Default::default() };
+        for (i, triangle) in triangles.iter().enumerate() {
+            let emission = emission_of_triangle(i);
+            let area = triangle.area();
+            if emission.max_element() > 0.0 && area > 0.0 {
+                lights.light_of_triangle[i] = lights.triangles.len() as u32;
+                lights.triangles.push(i as u32);
+                lights.emission.push(emission);
+                lights.areas.push(area);
+            }
+        }
+        lights.cdf = vec![0.0; lights.triangles.len()];
+        let power: Vec<f32> = lights.emission.iter().zip(&lights.areas).map(|(&e, &a)| luminance(e) * a).collect();
+        build_cdf(&mut lights.cdf, 0.0, |k| power[k]);
+        lights
+    }
+
+    /// Number of emissive triangles.
+    pub fn len(&self) -> usize {
+        self.triangles.len()
+    }
+
+    /// Whether the scene has no area lights.
+    pub fn is_empty(&self) -> bool {
+        self.triangles.is_empty()
+    }
+
+    /// Picks a light by power and a point on it uniformly by area.
+    pub fn sample(&self, triangles: &[Triangle], from: Vec3, u_select: f32, u: Vec2) -> Option<LightSample> {
+        if self.is_empty() {
+            return None;
+        }
+        let (light, _) = sample_cdf(&self.cdf, u_select);
+        let triangle = &triangles[self.triangles[light] as usize];
+        let point = triangle.point(square_to_triangle_barycentrics(u));
+        let normal = triangle.normal()?;
+        let to_light = point - from;
+        let distance2 = to_light.length_squared();
+        let distance = distance2.sqrt();
+        if !(distance.is_finite() && distance > 0.0) {
+            return None;
+        }
+        let wi = to_light / distance;
+        let cos_light = -normal.dot(wi);
+        if cos_light <= 0.0 {
+            return None;
+        }
+        let pdf = cdf_probability(&self.cdf, light) / self.areas[light] * distance2 / cos_light;
+        Some(LightSample { wi, distance, radiance: self.emission[light], pdf })
+    }
+
+    /// Density per steradian with which [`sample`](Self::sample) produces the direction
+    /// from `from` to point `point` on scene triangle `triangle` (normal `normal`).
+    pub fn pdf(&self, triangle: u32, from: Vec3, point: Vec3, normal: Vec3) -> f32 {
+        let Some(&light) = self.light_of_triangle.get(triangle as usize) else { return 0.0 };
+        if light == u32::MAX {
+            return 0.0;
+        }
+        let to_light = point - from;
+        let distance2 = to_light.length_squared();
+        let cos_light = -normal.dot(to_light) / distance2.sqrt();
+        if cos_light <= 0.0 {
+            return 0.0;
+        }
+        let light = light as usize;
+        cdf_probability(&self.cdf, light) / self.areas[light] * distance2 / cos_light
+    }
+}

@@ -1,0 +1,141 @@
+//! Progressive rendering over all cores: one sample per pixel per pass, until a sample
+//! count or a wall-clock budget is reached; guided methods learn during every pass and
+//! rebuild their sampling distributions between passes.
+
+use std::time::Instant;
+
+use glam::Vec3;
+use guiding_core::{Guide, HemisphereGrid, Intersector, Pcg32};
+use rayon::prelude::*;
+
+use crate::integrator::{IntegratorSettings, PathCounters, PathScratch, PathTracer};
+use crate::output::Image;
+use crate::scene::Scene;
+
+/// When to stop.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Budget {
+    /// After this many samples per pixel.
+    SamplesPerPixel(u32),
+    /// After the first pass that ends at or past this many seconds of rendering.
+    Seconds(f64),
+}
+
+/// Everything a render needs besides the scene, intersector and guide.
+#[derive(Clone, Copy, Debug)]
+pub struct RenderSettings {
+    /// The integrator.
+    pub integrator: IntegratorSettings,
+    /// When to stop.
+    pub budget: Budget,
+    /// Seed of every pixel's random numbers.
+    pub seed: u64,
+}
+
+/// What the passes did.
+#[derive(Clone, Debug, Default)]
+pub struct RenderStatistics {
+    /// Passes completed (= samples per pixel).
+    pub passes: u32,
+    /// Path counters over all passes.
+    pub counters: PathCounters,
+    /// Wall-clock seconds from the first pass to the last.
+    pub render_seconds: f64,
+    /// Of which spent rebuilding guide distributions between passes.
+    pub guide_rebuild_seconds: f64,
+    /// Mean radiance (RGB) of each pass's image, for error estimates.
+    pub pass_means: Vec<[f64; 3]>,
+}
+
+/// The state after a pass, handed to the progress callback.
+pub struct Progress<'a> {
+    /// Passes done.
+    pub passes: u32,
+    /// Seconds since the first pass started.
+    pub seconds: f64,
+    /// Sum of all samples per pixel so far (divide by `passes` for the image).
+    pub film: &'a [[f64; 3]],
+    /// Counters so far.
+    pub counters: PathCounters,
+}
+
+impl Progress<'_> {
+    /// The current image estimate.
+    pub fn image(&self, width: usize, height: usize) -> Image {
+        let scale = 1.0 / self.passes.max(1) as f64;
+        let pixels = self
+            .film
+            .iter()
+            .map(|p| Vec3::new((p[0] * scale) as f32, (p[1] * scale) as f32, (p[2] * scale) as f32))
+            .collect();
+        Image { width, height, pixels }
+    }
+}
+
+/// Renders `scene` progressively on the current rayon pool. `guide` is used (and
+/// learned) by the guided methods; `on_pass` sees the state after every pass.
+pub fn render<I: Intersector>(
+    scene: &Scene,
+    intersector: &I,
+    mut guide: Option<&mut HemisphereGrid>,
+    settings: &RenderSettings,
+    mut on_pass: impl FnMut(&Progress<'_>),
+) -> (Image, RenderStatistics) {
+    let (width, height) = (scene.camera.width as usize, scene.camera.height as usize);
+    let mut film = vec![[0.0f64; 3]; width * height];
+    let mut statistics = RenderStatistics::default();
+    let start = Instant::now();
+    loop {
+        let pass = statistics.passes;
+        let tracer = PathTracer::new(scene, intersector, guide.as_deref(), settings.integrator);
+        let pass_seed = settings.seed ^ (pass as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+        let (counters, pass_sum) = film
+            .par_chunks_mut(width)
+            .enumerate()
+            .map_init(PathScratch::default, |scratch, (y, row)| {
+                let mut counters = PathCounters::default();
+                let mut row_sum = [0.0f64; 3];
+                for (x, pixel) in row.iter_mut().enumerate() {
+                    let mut rng = Pcg32::new(pass_seed, (y * width + x) as u64);
+                    let ray = tracer.camera_ray(x as u32, y as u32, &mut rng);
+                    let radiance = tracer.radiance(ray, &mut rng, scratch, &mut counters);
+                    // A NaN or infinite sample would poison the pixel for good: count the
+                    // path as lost instead (it never happens with valid scenes).
+                    let radiance = if radiance.is_finite() { radiance } else { Vec3::ZERO };
+                    for c in 0..3 {
+                        pixel[c] += radiance[c] as f64;
+                        row_sum[c] += radiance[c] as f64;
+                    }
+                }
+                (counters, row_sum)
+            })
+            .reduce(
+                || (PathCounters::default(), [0.0; 3]),
+                |(ca, sa), (cb, sb)| (ca + cb, [sa[0] + sb[0], sa[1] + sb[1], sa[2] + sb[2]]),
+            );
+        let pixels = (width * height) as f64;
+        statistics.pass_means.push(pass_sum.map(|s| s / pixels));
+        statistics.counters = statistics.counters + counters;
+        statistics.passes += 1;
+        if settings.integrator.method.uses_guide() {
+            if let Some(guide) = guide.as_deref_mut() {
+                let rebuild = Instant::now();
+                guide.rebuild_sampling();
+                statistics.guide_rebuild_seconds += rebuild.elapsed().as_secs_f64();
+            }
+        }
+        let seconds = start.elapsed().as_secs_f64();
+        on_pass(&Progress { passes: statistics.passes, seconds, film: &film, counters: statistics.counters });
+        let done = match settings.budget {
+            Budget::SamplesPerPixel(spp) => statistics.passes >= spp,
+            Budget::Seconds(limit) => seconds >= limit,
+        };
+        if done {
+            statistics.render_seconds = seconds;
+            break;
+        }
+    }
+    let image = Progress { passes: statistics.passes, seconds: 0.0, film: &film, counters: statistics.counters }
+        .image(width, height);
+    (image, statistics)
+}

@@ -1,0 +1,81 @@
+//! Helpers for the tracer's tests: scenes written to temporary folders, renders in-process.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+
+use reference_tracer::cli::prepare;
+use reference_tracer::integrator::{IntegratorSettings, Method};
+use reference_tracer::render::{render, Budget, RenderSettings, RenderStatistics};
+
+/// A fresh temporary folder for one test.
+pub fn temp_folder(name: &str) -> PathBuf {
+    let folder = std::env::temp_dir().join(format!("lodestar-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&folder);
+    std::fs::create_dir_all(&folder).unwrap();
+    folder
+}
+
+/// Writes `json` as scene.json in `folder` and returns its path.
+pub fn write_scene(folder: &Path, json: &serde_json::Value) -> PathBuf {
+    let path = folder.join("scene.json");
+    std::fs::write(&path, serde_json::to_string_pretty(json).unwrap()).unwrap();
+    path
+}
+
+/// The repository's scene `name`, with its camera resized and its meshes copied along.
+pub fn repository_scene(name: &str, width: u32, height: u32) -> PathBuf {
+    let source = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes").join(name);
+    let folder = temp_folder(&format!("scene-{name}-{width}"));
+    let mut json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(source.join("scene.json")).unwrap()).unwrap();
+    json["camera"]["width"] = width.into();
+    json["camera"]["height"] = height.into();
+    copy_folder(&source, &folder);
+    write_scene(&folder, &json)
+}
+
+fn copy_folder(from: &Path, to: &Path) {
+    for entry in std::fs::read_dir(from).unwrap() {
+        let entry = entry.unwrap();
+        let target = to.join(entry.file_name());
+        if entry.file_type().unwrap().is_dir() {
+            std::fs::create_dir_all(&target).unwrap();
+            copy_folder(&entry.path(), &target);
+        } else {
+            std::fs::copy(entry.path(), target).unwrap();
+        }
+    }
+}
+
+/// Per-pass image means (RGB averaged) of a render: their mean and standard error.
+pub struct MeanEstimate {
+    pub mean: f64,
+    pub standard_error: f64,
+}
+
+pub fn mean_estimate(statistics: &RenderStatistics) -> MeanEstimate {
+    let values: Vec<f64> = statistics.pass_means.iter().map(|m| (m[0] + m[1] + m[2]) / 3.0).collect();
+    let n = values.len() as f64;
+    let mean = values.iter().sum::<f64>() / n;
+    let variance = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
+    MeanEstimate { mean, standard_error: (variance / n).sqrt() }
+}
+
+/// Renders `scene` with `settings` for `spp` passes on the current thread pool.
+pub fn render_scene(
+    scene: &Path,
+    integrator: IntegratorSettings,
+    guide: Option<guiding_core::HemisphereGridSettings>,
+    spp: u32,
+    seed: u64,
+) -> RenderStatistics {
+    let mut prepared = prepare(scene, guiding_obvhs::BvhKind::Cwbvh, guide).unwrap();
+    let settings = RenderSettings { integrator, budget: Budget::SamplesPerPixel(spp), seed };
+    let guide = prepared.guide.as_mut();
+    let (_, statistics) = render(&prepared.scene, &prepared.intersector, guide, &settings, |_| {});
+    statistics
+}
+
+pub fn settings(method: Method) -> IntegratorSettings {
+    IntegratorSettings { method, ..Default::default() }
+}
