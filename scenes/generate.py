@@ -1,0 +1,107 @@
+#!/usr/bin/env python3
+"""Writes the procedural scenes of this folder (scene.json files in SCENE_FORMAT).
+
+    python3 scenes/generate.py
+
+door: two rooms joined by a doorway whose door is opened a few degrees; the only light
+hangs in the back room, so the front room is lit through a narrow gap - the case path
+guiding exists for.
+"""
+import json
+import math
+import os
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+
+
+def quad(corners, material):
+    return {"type": "quad", "material": material, "corners": [[round(c, 6) for c in p] for p in corners]}
+
+
+def room(lo, hi, material, skip=()):
+    """The six faces of an axis-aligned room, wound to face inwards."""
+    (x0, y0, z0), (x1, y1, z1) = lo, hi
+    faces = {
+        "floor": [(x0, y0, z0), (x1, y0, z0), (x1, y0, z1), (x0, y0, z1)][::-1],
+        "ceiling": [(x0, y1, z0), (x0, y1, z1), (x1, y1, z1), (x1, y1, z0)][::-1],
+        "left": [(x0, y0, z0), (x0, y0, z1), (x0, y1, z1), (x0, y1, z0)][::-1],
+        "right": [(x1, y0, z0), (x1, y1, z0), (x1, y1, z1), (x1, y0, z1)][::-1],
+        "back": [(x0, y0, z0), (x0, y1, z0), (x1, y1, z0), (x1, y0, z0)][::-1],
+        "front": [(x0, y0, z1), (x1, y0, z1), (x1, y1, z1), (x0, y1, z1)][::-1],
+    }
+    return [quad(c, material) for name, c in faces.items() if name not in skip]
+
+
+def box(lo, hi, material, rotate_y=0.0, pivot=(0.0, 0.0, 0.0)):
+    """A closed box wound outwards, turned by rotate_y radians about a vertical axis."""
+    (x0, y0, z0), (x1, y1, z1) = lo, hi
+    c, s = math.cos(rotate_y), math.sin(rotate_y)
+
+    def turn(p):
+        x, y, z = p[0] - pivot[0], p[1], p[2] - pivot[2]
+        return (pivot[0] + c * x + s * z, y, pivot[2] - s * x + c * z)
+
+    faces = [
+        [(x0, y0, z0), (x1, y0, z0), (x1, y0, z1), (x0, y0, z1)],
+        [(x0, y1, z0), (x0, y1, z1), (x1, y1, z1), (x1, y1, z0)],
+        [(x0, y0, z0), (x0, y0, z1), (x0, y1, z1), (x0, y1, z0)],
+        [(x1, y0, z0), (x1, y1, z0), (x1, y1, z1), (x1, y0, z1)],
+        [(x0, y0, z0), (x0, y1, z0), (x1, y1, z0), (x1, y0, z0)],
+        [(x0, y0, z1), (x1, y0, z1), (x1, y1, z1), (x0, y1, z1)],
+    ]
+    return [quad([turn(p) for p in f], material) for f in faces]
+
+
+def door_scene():
+    width, height = 4.0, 2.5
+    wall = (0.0, -0.12)  # the dividing wall's two faces (front room at z > 0)
+    opening = (0.4, 1.2, 2.1)  # doorway x from, x to, height
+    shapes = []
+    shapes += room((-width / 2, 0, wall[0]), (width / 2, height, 4.5), "white", skip=("back",))
+    shapes += room((-width / 2, 0, -4.5), (width / 2, height, wall[1]), "white", skip=("front",))
+    x_lo, x_hi, door_top = opening
+    # The dividing wall around the doorway, one quad set per side.
+    for z, facing_front in ((wall[0], True), (wall[1], False)):
+        pieces = [
+            ((-width / 2, 0), (x_lo, height)),
+            ((x_hi, 0), (width / 2, height)),
+            ((x_lo, door_top), (x_hi, height)),
+        ]
+        for (a, b), (c, d) in pieces:
+            corners = [(a, b, z), (c, b, z), (c, d, z), (a, d, z)]
+            shapes.append(quad(corners if facing_front else corners[::-1], "white"))
+    # Jambs and header inside the doorway.
+    z0, z1 = wall[1], wall[0]
+    shapes.append(quad([(x_lo, 0, z0), (x_lo, 0, z1), (x_lo, door_top, z1), (x_lo, door_top, z0)][::-1], "white"))
+    shapes.append(quad([(x_hi, 0, z0), (x_hi, door_top, z0), (x_hi, door_top, z1), (x_hi, 0, z1)][::-1], "white"))
+    shapes.append(quad([(x_lo, door_top, z0), (x_hi, door_top, z0), (x_hi, door_top, z1), (x_lo, door_top, z1)], "white"))
+    # The door: hinged at the doorway's left edge on the back-room side, opened 5 degrees.
+    hinge = (x_lo, 0.0, wall[1])
+    shapes += box((x_lo + 0.005, 0.0, wall[1] - 0.04), (x_hi - 0.005, door_top - 0.005, wall[1]), "door",
+                  rotate_y=math.radians(5.0), pivot=hinge)
+    # The only light: a small panel on the back room's ceiling, far from the door.
+    y = height - 0.01
+    shapes.append(quad([(-1.2, y, -3.6), (-1.2, y, -2.8), (-0.4, y, -2.8), (-0.4, y, -3.6)][::-1], "lamp"))
+    return {
+        "format": 1,
+        "camera": {"eye": [-1.6, 1.3, 4.3], "target": [0.6, 1.0, 0.0], "up": [0, 1, 0],
+                   "fov_y_deg": 55.0, "width": 320, "height": 240},
+        "materials": {
+            "white": {"type": "diffuse", "albedo": [0.75, 0.75, 0.72]},
+            "door": {"type": "diffuse", "albedo": [0.55, 0.4, 0.3]},
+            "lamp": {"type": "diffuse", "albedo": [0.8, 0.8, 0.8], "emission": [400, 360, 300]},
+        },
+        "shapes": shapes,
+    }
+
+
+def write(name, scene):
+    folder = os.path.join(HERE, name)
+    os.makedirs(folder, exist_ok=True)
+    with open(os.path.join(folder, "scene.json"), "w") as f:
+        json.dump(scene, f, indent=1)
+        f.write("\n")
+
+
+if __name__ == "__main__":
+    write("door", door_scene())
