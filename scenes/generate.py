@@ -6,6 +6,9 @@
 door: two rooms joined by a doorway whose door is opened a few degrees; the only light
 hangs in the back room, so the front room is lit through a narrow gap - the case path
 guiding exists for.
+window: a closed room lit only by the environment (the Venice sunset map) through one
+small window.
+glossy: a box room with a rough metal sphere and a glass block under a small ceiling light.
 """
 import json
 import math
@@ -95,6 +98,98 @@ def door_scene():
     }
 
 
+def wall_with_hole(z, facing_front, x_range, y_range, hole, material):
+    """A wall in the plane z = const with a rectangular hole, as four quads."""
+    (x0, x1), (y0, y1) = x_range, y_range
+    (hx0, hx1), (hy0, hy1) = hole
+    pieces = [((x0, y0), (hx0, y1)), ((hx1, y0), (x1, y1)), ((hx0, y0), (hx1, hy0)), ((hx0, hy1), (hx1, y1))]
+    shapes = []
+    for (a, b), (c, d) in pieces:
+        corners = [(a, b, z), (c, b, z), (c, d, z), (a, d, z)]
+        shapes.append(quad(corners if facing_front else corners[::-1], material))
+    return shapes
+
+
+def window_scene():
+    width, height, depth = 4.0, 2.6, 5.0
+    shapes = room((-width / 2, 0, -depth), (width / 2, height, 0.0), "white", skip=("back",))
+    hole = ((-0.45, 0.45), (1.2, 1.9))
+    thickness = 0.15
+    # The back wall at z = -depth with a window; its outside face and the reveal close it.
+    shapes += wall_with_hole(-depth, True, (-width / 2, width / 2), (0, height), hole, "white")
+    shapes += wall_with_hole(-depth - thickness, False, (-width / 2, width / 2), (0, height), hole, "white")
+    (hx0, hx1), (hy0, hy1) = hole
+    z0, z1 = -depth - thickness, -depth
+    shapes.append(quad([(hx0, hy0, z0), (hx0, hy0, z1), (hx0, hy1, z1), (hx0, hy1, z0)][::-1], "white"))
+    shapes.append(quad([(hx1, hy0, z0), (hx1, hy1, z0), (hx1, hy1, z1), (hx1, hy0, z1)][::-1], "white"))
+    shapes.append(quad([(hx0, hy0, z0), (hx1, hy0, z0), (hx1, hy0, z1), (hx0, hy0, z1)], "white"))
+    shapes.append(quad([(hx0, hy1, z0), (hx0, hy1, z1), (hx1, hy1, z1), (hx1, hy1, z0)], "white"))
+    shapes += box((-1.2, 0.0, -3.2), (-0.4, 0.8, -2.4), "white", rotate_y=math.radians(20), pivot=(-0.8, 0, -2.8))
+    return {
+        "format": 1,
+        "camera": {"eye": [1.5, 1.4, -0.3], "target": [-0.4, 1.0, -4.0], "up": [0, 1, 0],
+                   "fov_y_deg": 60.0, "width": 320, "height": 240},
+        "materials": {"white": {"type": "diffuse", "albedo": [0.7, 0.7, 0.7]}},
+        "shapes": shapes,
+        "environment": {"type": "image", "file": "../envmaps/venice_sunset_1k.hdr", "scale": 1.0},
+    }
+
+
+def icosphere(levels):
+    """Vertices and faces of a unit sphere subdivided from an octahedron, wound outwards."""
+    vertices = [(1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1)]
+    faces = [(0, 2, 4), (2, 1, 4), (1, 3, 4), (3, 0, 4), (2, 0, 5), (1, 2, 5), (3, 1, 5), (0, 3, 5)]
+    for _ in range(levels):
+        cache, next_faces = {}, []
+
+        def middle(a, b):
+            key = (min(a, b), max(a, b))
+            if key not in cache:
+                p = [(vertices[a][i] + vertices[b][i]) / 2 for i in range(3)]
+                n = math.sqrt(sum(c * c for c in p))
+                vertices.append(tuple(c / n for c in p))
+                cache[key] = len(vertices) - 1
+            return cache[key]
+
+        for a, b, c in faces:
+            ab, bc, ca = middle(a, b), middle(b, c), middle(c, a)
+            next_faces += [(a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca)]
+        faces = next_faces
+    return vertices, faces
+
+
+def write_obj(path, vertices, faces, center, radius):
+    with open(path, "w") as f:
+        f.write("# written by scenes/generate.py\n")
+        for v in vertices:
+            f.write("v %.6f %.6f %.6f\n" % tuple(center[i] + radius * v[i] for i in range(3)))
+        for a, b, c in faces:
+            f.write("f %d %d %d\n" % (a + 1, b + 1, c + 1))
+
+
+def glossy_scene(folder):
+    shapes = room((-1.0, 0.0, -1.0), (1.0, 2.0, 1.0), "white", skip=("front",))
+    vertices, faces = icosphere(4)
+    os.makedirs(os.path.join(folder, "meshes"), exist_ok=True)
+    write_obj(os.path.join(folder, "meshes", "sphere.obj"), vertices, faces, (-0.4, 0.45, -0.2), 0.45)
+    shapes.append({"type": "mesh", "file": "meshes/sphere.obj", "material": "metal"})
+    shapes += box((0.15, 0.0, -0.1), (0.75, 0.9, 0.5), "glass", rotate_y=math.radians(-25), pivot=(0.45, 0, 0.2))
+    y = 1.995
+    shapes.append(quad([(-0.15, y, -0.15), (0.15, y, -0.15), (0.15, y, 0.15), (-0.15, y, 0.15)], "lamp"))
+    return {
+        "format": 1,
+        "camera": {"eye": [0, 1, 3.9], "target": [0, 0.8, 0], "up": [0, 1, 0],
+                   "fov_y_deg": 39.3, "width": 256, "height": 256},
+        "materials": {
+            "white": {"type": "diffuse", "albedo": [0.72, 0.72, 0.7]},
+            "metal": {"type": "conductor", "specular": [0.95, 0.8, 0.55], "alpha": 0.15},
+            "glass": {"type": "dielectric", "ior": 1.5},
+            "lamp": {"type": "diffuse", "albedo": [0.8, 0.8, 0.8], "emission": [60, 55, 45]},
+        },
+        "shapes": shapes,
+    }
+
+
 def write(name, scene):
     folder = os.path.join(HERE, name)
     os.makedirs(folder, exist_ok=True)
@@ -105,3 +200,5 @@ def write(name, scene):
 
 if __name__ == "__main__":
     write("door", door_scene())
+    write("window", window_scene())
+    write("glossy", glossy_scene(os.path.join(HERE, "glossy")))

@@ -27,12 +27,17 @@ pub fn build_cdf(cdf: &mut [f32], uniform_mix: f32, weight: impl Fn(usize) -> f3
     }
     let total: f64 = (0..count).map(|k| weight(k) as f64).sum();
     let mix = if total > 0.0 { uniform_mix.clamp(0.0, 1.0) as f64 } else { 1.0 };
-    let scale = if total > 0.0 { (1.0 - mix) / total } else { 0.0 };
-    let uniform = mix / count as f64;
+    // Accumulate directly in quanta (2⁻²⁴ units): every stored value is then an integer
+    // count of quanta, converted exactly to f32.
+    let scale = if total > 0.0 { (1.0 - mix) / total * QUANTA } else { 0.0 };
+    let uniform = mix / count as f64 * QUANTA;
     let mut cumulative = 0.0f64;
     for (k, slot) in cdf.iter_mut().enumerate() {
         cumulative += weight(k) as f64 * scale + uniform;
-        *slot = (libm::round(cumulative * QUANTA).min(QUANTA) / QUANTA) as f32;
+        // Round to the nearest quantum: the value is non-negative, so adding ½ and
+        // truncating rounds (and is far cheaper than a software `round`).
+        let quanta = ((cumulative + 0.5) as u64).min(1 << 24);
+        *slot = quanta as f32 * PROBABILITY_QUANTUM;
     }
     cdf[count - 1] = 1.0;
 }

@@ -32,12 +32,41 @@ enum Command {
     Render(RenderArgs),
     /// Render a converged reference image with `nee`.
     Reference(ReferenceArgs),
+    /// Run several methods on one scene for the same wall time each; writes
+    /// DIR/compare.csv, DIR/compare.md, DIR/error.svg and every method's image.
+    Compare(CompareArgs),
+}
+
+#[derive(Debug, Args)]
+struct CompareArgs {
+    /// The scene file (scene.json).
+    scene: PathBuf,
+    /// Comma-separated methods, e.g. pt,nee,guided,guided-nee.
+    #[arg(long, value_delimiter = ',', value_parser = parse_method, required = true)]
+    methods: Vec<Method>,
+    /// Wall-clock seconds per method.
+    #[arg(long)]
+    seconds: f64,
+    /// Reference image (.exr/.pfm/.hdr).
+    #[arg(long)]
+    reference: PathBuf,
+    /// Output folder.
+    #[arg(long)]
+    out: PathBuf,
+    /// Times (seconds) at which the table reports relMSE; default 10 and --seconds.
+    #[arg(long, value_delimiter = ',')]
+    report_at: Vec<f64>,
+    #[command(flatten)]
+    options: TraceOptions,
 }
 
 #[derive(Debug, Args)]
 struct RenderArgs {
     /// The scene file (scene.json).
     scene: PathBuf,
+    /// pt, nee, guided or guided-nee.
+    #[arg(long, default_value = "nee", value_parser = parse_method)]
+    integrator: Method,
     #[command(flatten)]
     options: TraceOptions,
     /// Samples per pixel (default 64 unless --seconds is given).
@@ -78,9 +107,6 @@ struct ReferenceArgs {
 /// Options shared by every command that traces paths.
 #[derive(Debug, Args, Clone)]
 pub struct TraceOptions {
-    /// pt, nee, guided or guided-nee.
-    #[arg(long, default_value = "nee", value_parser = parse_method)]
-    integrator: Method,
     /// The guide structure: hemisphere.
     #[arg(long, default_value = "hemisphere", value_parser = ["hemisphere"])]
     guide: String,
@@ -183,9 +209,9 @@ impl TraceOptions {
         Ok(settings)
     }
 
-    fn integrator(&self) -> IntegratorSettings {
+    fn integrator(&self, method: Method) -> IntegratorSettings {
         IntegratorSettings {
-            method: self.integrator,
+            method,
             max_depth: self.max_depth.max(1),
             rr_depth: self.rr_depth,
             guide_probability: self.p_guide,
@@ -271,16 +297,19 @@ pub struct Checkpoint {
 }
 
 /// Renders a prepared scene, recording the error against `reference` after passes
-/// 1, 2, 4, 8, … and the last.
+/// 1, 2, 4, 8, …, after the first pass to end at or past each of `report_times`
+/// (seconds), and after the last.
 pub fn render_prepared(
     prepared: &mut Prepared,
     settings: &RenderSettings,
     reference: Option<&Image>,
+    report_times: &[f64],
     show_progress: bool,
 ) -> (Image, RenderStatistics, Vec<Checkpoint>) {
     let (width, height) = (prepared.scene.camera.width as usize, prepared.scene.camera.height as usize);
     let bar = if show_progress { progress_bar(settings.budget) } else { ProgressBar::hidden() };
     let mut checkpoints = Vec::new();
+    let mut previous_seconds = 0.0;
     let guide = if settings.integrator.method.uses_guide() { prepared.guide.as_mut() } else { None };
     let (image, statistics) = render(&prepared.scene, &prepared.intersector, guide, settings, |progress| {
         match settings.budget {
@@ -290,8 +319,10 @@ pub fn render_prepared(
                 bar.set_message(format!("{} spp", progress.passes));
             }
         }
+        let crossed = report_times.iter().any(|&t| previous_seconds < t && progress.seconds >= t);
+        previous_seconds = progress.seconds;
         if let Some(reference) = reference {
-            if progress.passes.is_power_of_two() {
+            if progress.passes.is_power_of_two() || crossed {
                 if let Some(error) = image_error(&progress.image(width, height), reference) {
                     checkpoints.push(Checkpoint {
                         seconds: progress.seconds,
@@ -387,26 +418,6 @@ pub fn statistics_json(
     })
 }
 
-fn write_checkpoints_csv(path: &Path, method: Method, checkpoints: &[Checkpoint]) -> Result<(), String> {
-    let mut text = String::from("method,seconds,spp,paths_per_second,nonzero_share,mean_path_length,relmse,mse,mape\n");
-    for c in checkpoints {
-        let paths = c.counters.paths.max(1) as f64;
-        text += &format!(
-            "{},{:.6},{},{:.1},{:.6},{:.4},{:.6e},{:.6e},{:.6e}\n",
-            method.name(),
-            c.seconds,
-            c.spp,
-            c.counters.paths as f64 / c.seconds.max(1e-9),
-            c.counters.nonzero_paths as f64 / paths,
-            c.counters.vertices as f64 / paths,
-            c.error.relmse,
-            c.error.mse,
-            c.error.mape
-        );
-    }
-    std::fs::write(path, text).map_err(|e| format!("cannot write {}: {e}", path.display()))
-}
-
 fn run_render(args: &RenderArgs) -> Result<(), String> {
     let options = &args.options;
     let guide_settings = options.guide_settings()?;
@@ -422,7 +433,7 @@ fn run_render(args: &RenderArgs) -> Result<(), String> {
         None => None,
     };
     let pool = thread_pool(options.threads)?;
-    let mut prepared = prepare(&args.scene, options.bvh, options.integrator.uses_guide().then_some(guide_settings))?;
+    let mut prepared = prepare(&args.scene, options.bvh, args.integrator.uses_guide().then_some(guide_settings))?;
     for warning in &prepared.scene.warnings {
         eprintln!("warning: {}: {warning}", args.scene.display());
     }
@@ -435,21 +446,22 @@ fn run_render(args: &RenderArgs) -> Result<(), String> {
             ));
         }
     }
-    let settings = RenderSettings { integrator: options.integrator(), budget, seed: options.seed };
+    let settings = RenderSettings { integrator: options.integrator(args.integrator), budget, seed: options.seed };
     let (image, statistics, checkpoints) =
-        pool.install(|| render_prepared(&mut prepared, &settings, reference.as_ref(), true));
+        pool.install(|| render_prepared(&mut prepared, &settings, reference.as_ref(), &[], true));
     write_outputs(&args.out, &image, args.pfm)?;
-    let json = statistics_json(options.integrator, &prepared, &statistics, &image);
+    let json = statistics_json(args.integrator, &prepared, &statistics, &image);
     let json_path = sibling(&args.out, "json");
     std::fs::write(&json_path, serde_json::to_string_pretty(&json).unwrap_or_default())
         .map_err(|e| format!("cannot write {}: {e}", json_path.display()))?;
     if reference.is_some() {
-        write_checkpoints_csv(&sibling(&args.out, "csv"), options.integrator, &checkpoints)?;
+        let rows = crate::report::checkpoint_rows(args.integrator.name(), &checkpoints);
+        crate::report::write_csv(&sibling(&args.out, "csv"), &rows)?;
     }
     let c = &statistics.counters;
     eprintln!(
         "{}: {} spp in {:.2} s, {:.0} paths/s, non-zero share {:.3}, mean path length {:.2}{}",
-        options.integrator.name(),
+        args.integrator.name(),
         statistics.passes,
         statistics.render_seconds,
         c.paths as f64 / statistics.render_seconds.max(1e-9),
@@ -469,7 +481,7 @@ fn run_reference(args: &ReferenceArgs) -> Result<(), String> {
     let mut prepared = prepare(&args.scene, BvhKind::default(), None)?;
     let integrator = IntegratorSettings { method: Method::Nee, ..Default::default() };
     let settings = RenderSettings { integrator, budget: Budget::SamplesPerPixel(args.spp), seed: args.seed };
-    let (image, statistics, _) = pool.install(|| render_prepared(&mut prepared, &settings, None, true));
+    let (image, statistics, _) = pool.install(|| render_prepared(&mut prepared, &settings, None, &[], true));
     write_outputs(&args.out, &image, false)?;
     let json = statistics_json(Method::Nee, &prepared, &statistics, &image);
     std::fs::write(sibling(&args.out, "json"), serde_json::to_string_pretty(&json).unwrap_or_default())
@@ -483,12 +495,67 @@ fn run_reference(args: &ReferenceArgs) -> Result<(), String> {
     Ok(())
 }
 
+fn run_compare(args: &CompareArgs) -> Result<(), String> {
+    if !(args.seconds.is_finite() && args.seconds > 0.0) {
+        return Err(format!("--seconds {} must be positive", args.seconds));
+    }
+    let options = &args.options;
+    let guide_settings = options.guide_settings()?;
+    let reference = read_image(&args.reference).map_err(|e| format!("{}: {e}", args.reference.display()))?;
+    std::fs::create_dir_all(&args.out).map_err(|e| format!("cannot create {}: {e}", args.out.display()))?;
+    let mut report_times: Vec<f64> = if args.report_at.is_empty() {
+        [10.0, args.seconds].into_iter().filter(|&t| t <= args.seconds).collect()
+    } else {
+        args.report_at.clone()
+    };
+    report_times.dedup();
+    let pool = thread_pool(options.threads)?;
+    let mut rows = Vec::new();
+    let mut names = Vec::new();
+    for &method in &args.methods {
+        let mut prepared = prepare(&args.scene, options.bvh, method.uses_guide().then_some(guide_settings))?;
+        let camera = &prepared.scene.camera;
+        if (reference.width, reference.height) != (camera.width as usize, camera.height as usize) {
+            return Err(format!(
+                "reference is {}×{}, the scene renders {}×{}",
+                reference.width, reference.height, camera.width, camera.height
+            ));
+        }
+        eprintln!("{}: rendering {} s", method.name(), args.seconds);
+        let settings = RenderSettings {
+            integrator: options.integrator(method),
+            budget: Budget::Seconds(args.seconds),
+            seed: options.seed,
+        };
+        let (image, statistics, checkpoints) =
+            pool.install(|| render_prepared(&mut prepared, &settings, Some(&reference), &report_times, true));
+        let image_path = args.out.join(format!("{}.exr", method.name()));
+        write_outputs(&image_path, &image, false)?;
+        let json = statistics_json(method, &prepared, &statistics, &image);
+        std::fs::write(sibling(&image_path, "json"), serde_json::to_string_pretty(&json).unwrap_or_default())
+            .map_err(|e| format!("cannot write statistics: {e}"))?;
+        rows.extend(crate::report::checkpoint_rows(method.name(), &checkpoints));
+        names.push(method.name().to_string());
+    }
+    crate::report::write_csv(&args.out.join("compare.csv"), &rows)?;
+    let baseline = if names.iter().any(|n| n == "nee") { "nee" } else { names[0].as_str() };
+    let table = crate::report::markdown(&rows, &names, &report_times, baseline);
+    let title = format!("{}: relMSE against time", args.scene.display());
+    let markdown =
+        format!("# {title}\n\n{} s per method, reference {}\n\n{table}", args.seconds, args.reference.display());
+    std::fs::write(args.out.join("compare.md"), &markdown).map_err(|e| format!("cannot write compare.md: {e}"))?;
+    crate::report::plot_svg(&args.out.join("error.svg"), &rows, &names, &title)?;
+    println!("{table}");
+    Ok(())
+}
+
 impl Cli {
     /// Runs the parsed command.
     pub fn run(&self) -> Result<(), String> {
         match &self.command {
             Command::Render(args) => run_render(args),
             Command::Reference(args) => run_reference(args),
+            Command::Compare(args) => run_compare(args),
         }
     }
 }

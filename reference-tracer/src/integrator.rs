@@ -230,7 +230,7 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
             let triangle = &self.scene.triangles[hit.primitive as usize];
             let material = self.scene.material(hit.primitive);
             let point = triangle.point(hit.barycentrics);
-            let geometric_normal = triangle.normal().unwrap_or(Vec3::Z);
+            let geometric_normal = self.scene.normals[hit.primitive as usize];
             let wo = -ray.direction;
 
             // Emission from the front face.

@@ -17,5 +17,6 @@ pub mod material;
 pub mod metrics;
 pub mod output;
 pub mod render;
+pub mod report;
 pub mod sampling;
 pub mod scene;

@@ -25,12 +25,12 @@ use super::settings::HemisphereGridSettings;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct ProbeId(pub u32);
 
-/// Bytes of a grid's tables for `probes` probes of `patches` patches each, excluding the
-/// struct itself: per probe a position, a normal and a visit count (28 bytes); per patch
+/// Bytes of a grid's tables for `probes` probes of `patches` patches each, with the
+/// struct itself: per probe a position, a normal and two visit counts (32 bytes); per patch
 /// Q, a visit count and a CDF entry (12 bytes); the lookup's bucket table; and the shared
 /// per-patch centre and cosine tables (16 bytes per patch).
 pub(crate) fn table_bytes(probes: usize, patches: usize) -> usize {
-    let per_probe = 3 * 4 + 3 * 4 + 4 + patches * 12;
+    let per_probe = 3 * 4 + 3 * 4 + 2 * 4 + patches * 12;
     probes.saturating_mul(per_probe)
         + (ProbeLookup::bucket_count(probes) + 1) * 4
         + patches * 16
@@ -86,6 +86,9 @@ pub struct HemisphereGrid {
     positions: Vec<Vec3>,
     normals: Vec<Vec3>,
     probe_visits: Vec<AtomicU32>,
+    /// Each probe's visit count when its CDF was last built: a probe whose count has
+    /// not moved since has nothing new to sample from and is skipped by the rebuild.
+    visits_at_last_build: Vec<u32>,
     q: Vec<AtomicU32>,
     patch_visits: Vec<AtomicU32>,
     cdf: Vec<f32>,
@@ -196,6 +199,7 @@ impl HemisphereGrid {
             positions: reorder_probe(&state.positions),
             normals: reorder_probe(&state.normals),
             probe_visits: visits_in_order(&state.probe_visits, 1),
+            visits_at_last_build: order.iter().map(|&i| state.probe_visits[i as usize]).collect(),
             q: to_atomic_f32(reorder_rows(&state.q)),
             patch_visits: visits_in_order(&state.patch_visits, patches),
             cdf: cdf.unwrap_or_else(|| alloc::vec![0.0; state.q.len()]),
@@ -208,16 +212,22 @@ impl HemisphereGrid {
             settings,
         };
         if !has_cdf {
-            grid.build_all_cdfs();
+            grid.build_cdfs(true);
         }
         grid
     }
 
-    fn build_all_cdfs(&mut self) {
+    /// Rebuilds the CDF of every probe updated since its last build (of all with `all`).
+    fn build_cdfs(&mut self, all: bool) {
         let patches = self.patch_count();
         let mix = self.settings.uniform_mix;
-        for (cdf, q) in self.cdf.chunks_exact_mut(patches).zip(self.q.chunks_exact(patches)) {
-            build_cdf(cdf, mix, |k| atomic_f32::load(&q[k]));
+        let rows = self.cdf.chunks_exact_mut(patches).zip(self.q.chunks_exact(patches));
+        for ((cdf, q), (visits, built)) in rows.zip(self.probe_visits.iter().zip(&mut self.visits_at_last_build)) {
+            let visits = visits.load(Ordering::Relaxed);
+            if all || visits != *built {
+                build_cdf(cdf, mix, |k| atomic_f32::load(&q[k]));
+                *built = visits;
+            }
         }
     }
 
@@ -297,12 +307,16 @@ impl HemisphereGrid {
             let clamped = if v.is_nan() { floor } else { v.clamp(floor, f32::MAX) };
             *cell = atomic_f32::new(clamped);
         }
+        // Make the next rebuild include this probe.
+        let built = &mut self.visits_at_last_build[probe.0 as usize];
+        *built = built.wrapping_add(1);
     }
 
     /// Bytes held by all tables and the struct.
     pub fn memory_bytes(&self) -> usize {
-        let per_probe =
-            self.positions.capacity() * 12 + self.normals.capacity() * 12 + self.probe_visits.capacity() * 4;
+        let per_probe = self.positions.capacity() * 12
+            + self.normals.capacity() * 12
+            + (self.probe_visits.capacity() + self.visits_at_last_build.capacity()) * 4;
         let per_patch = (self.q.capacity() + self.patch_visits.capacity() + self.cdf.capacity()) * 4;
         let shared = self.patch_centers.capacity() * 12 + self.patch_cos_integrals.capacity() * 4;
         per_probe + per_patch + shared + self.lookup.memory_bytes() + core::mem::size_of::<Self>()
@@ -348,23 +362,25 @@ pub(crate) struct GridStateView<'a> {
     pub(crate) rejected_negative: usize,
 }
 
-/// Σ q_k·w_k in f64 with four independent partial sums, so the additions pipeline
-/// instead of waiting on each other.
+/// Σ q_k·w_k with eight independent f32 partial sums, so the additions pipeline instead
+/// of waiting on each other; the partial sums are combined in f64. A partial sum can
+/// overflow only when Q is within a factor N/2π of f32::MAX, and the caller clamps the
+/// result to f32::MAX.
 fn weighted_sum(q: &[AtomicU32], weights: &[f32]) -> f64 {
-    let mut partial = [0.0f64; 4];
-    let (q_chunks, w_chunks) = (q.chunks_exact(4), weights.chunks_exact(4));
+    let mut partial = [0.0f32; 8];
+    let (q_chunks, w_chunks) = (q.chunks_exact(8), weights.chunks_exact(8));
     let tail: f64 = q_chunks
         .remainder()
         .iter()
         .zip(w_chunks.remainder())
         .map(|(q, &w)| atomic_f32::load(q) as f64 * w as f64)
         .sum();
-    for (q4, w4) in q_chunks.zip(w_chunks) {
-        for lane in 0..4 {
-            partial[lane] += atomic_f32::load(&q4[lane]) as f64 * w4[lane] as f64;
+    for (q8, w8) in q_chunks.zip(w_chunks) {
+        for lane in 0..8 {
+            partial[lane] += atomic_f32::load(&q8[lane]) * w8[lane];
         }
     }
-    partial.iter().sum::<f64>() + tail
+    partial.iter().map(|&p| p as f64).sum::<f64>() + tail
 }
 
 /// One probe's sampling distribution: its CDF over patches, then uniform in the patch.
@@ -483,7 +499,7 @@ impl Guide for HemisphereGrid {
     }
 
     fn rebuild_sampling(&mut self) {
-        self.build_all_cdfs();
+        self.build_cdfs(false);
         self.epoch = self.epoch.saturating_add(1);
     }
 

@@ -17,6 +17,17 @@ const MAX_CELL_COORDINATE: i32 = 1 << 20;
 /// probe of most queries on a surface, so the shell search is rarely needed.
 const CELL_SIZE_IN_SPACINGS: f32 = 1.5;
 
+/// ⌊x⌋ as an integer without a software `floor` (this crate has no std): `as` truncates
+/// towards zero and saturates, maps NaN to 0; one step down fixes negative non-integers.
+fn floor_to_i32(x: f32) -> i32 {
+    let truncated = x as i32;
+    if (truncated as f32) > x {
+        truncated - 1
+    } else {
+        truncated
+    }
+}
+
 /// The hash grid. See the module documentation for its layout.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ProbeLookup {
@@ -47,6 +58,10 @@ impl ProbeLookup {
         if !(cell_size.is_finite() && cell_size > 0.0) {
             cell_size = if extent > 0.0 && extent.is_finite() { extent } else { 1.0 };
         }
+        // Shift the grid by half a cell: scenes put walls on their bounding box, and a wall
+        // on a cell face would make every query start next to a face, defeating the
+        // own-cell fast path of `nearest`.
+        let origin = origin - Vec3::splat(0.5 * cell_size);
         let mut lookup = Self {
             origin,
             cell_size,
@@ -86,9 +101,8 @@ impl ProbeLookup {
     }
 
     fn cell_of(&self, p: Vec3) -> IVec3 {
-        let c = ((p - self.origin) * self.inverse_cell_size).floor();
-        // `as` saturates and maps NaN to 0; the clamp keeps neighbour arithmetic in range.
-        IVec3::new(c.x as i32, c.y as i32, c.z as i32)
+        let c = (p - self.origin) * self.inverse_cell_size;
+        IVec3::new(floor_to_i32(c.x), floor_to_i32(c.y), floor_to_i32(c.z))
             .clamp(IVec3::splat(-MAX_CELL_COORDINATE), IVec3::splat(MAX_CELL_COORDINATE))
     }
 
@@ -108,24 +122,33 @@ impl ProbeLookup {
         let visit = |cell: IVec3, best: &mut Option<(usize, f32)>| {
             let b = self.bucket(cell) as usize;
             let (start, end) = (self.bucket_starts[b] as usize, self.bucket_starts[b + 1] as usize);
-            for (probe, position) in positions.iter().enumerate().take(end).skip(start) {
+            for (offset, position) in positions[start..end].iter().enumerate() {
+                let probe = start + offset;
                 let d2 = position.distance_squared(query);
                 if best.is_none_or(|(_, best_d2)| d2 < best_d2) && accept(probe) {
                     *best = Some((probe, d2));
                 }
             }
         };
-        // The 2×2×2 block towards the query's nearest cell faces holds every probe
-        // within half a cell of it.
+        // The query's own cell holds every probe closer than its nearest cell face.
         let scaled = (query - self.origin) * self.inverse_cell_size;
         let center = self.cell_of(query);
-        let toward = (scaled - scaled.floor()).cmplt(Vec3::splat(0.5));
+        let fraction = (scaled - center.as_vec3()).clamp(Vec3::ZERO, Vec3::ONE);
+        visit(center, &mut best);
+        if let Some((probe, d2)) = best {
+            let margin = fraction.min(Vec3::ONE - fraction).min_element() * self.cell_size;
+            if d2 <= margin * margin {
+                return Some(probe);
+            }
+        }
+        // The 2×2×2 block towards the nearest faces holds every probe within half a cell.
+        let toward = fraction.cmplt(Vec3::splat(0.5));
         let step = IVec3::new(
             if toward.test(0) { -1 } else { 1 },
             if toward.test(1) { -1 } else { 1 },
             if toward.test(2) { -1 } else { 1 },
         );
-        for corner in 0..8 {
+        for corner in 1..8 {
             let offset = IVec3::new(corner & 1, (corner >> 1) & 1, corner >> 2) * step;
             visit(center + offset, &mut best);
         }
@@ -183,6 +206,14 @@ mod tests {
             .filter(|&(i, _)| accept(i))
             .map(|(_, p)| p.distance_squared(query))
             .min_by(f32::total_cmp)
+    }
+
+    #[test]
+    fn floor_matches_the_mathematical_floor() {
+        for x in [0.0f32, 0.5, 1.0, -0.5, -1.0, -1.5, 2.999, -2.999, 1e9, -1e9, f32::NAN] {
+            let expected = if x.is_nan() { 0 } else { libm::floorf(x) as i32 };
+            assert_eq!(floor_to_i32(x), expected, "{x}");
+        }
     }
 
     #[test]

@@ -31,6 +31,8 @@ pub struct Scene {
     pub camera: Camera,
     /// Every triangle, in shape order.
     pub triangles: Vec<Triangle>,
+    /// Unit geometric normal of each triangle (from its winding).
+    pub normals: Vec<Vec3>,
     /// Material index of each triangle.
     pub triangle_materials: Vec<u32>,
     /// Materials, in name order.
@@ -82,6 +84,7 @@ impl Scene {
         }
 
         let mut triangles = Vec::new();
+        let mut normals = Vec::new();
         let mut triangle_materials = Vec::new();
         let mut degenerate = 0usize;
         for (index, shape) in description.shapes.iter().enumerate() {
@@ -95,11 +98,12 @@ impl Scene {
                     positions[face[1] as usize],
                     positions[face[2] as usize],
                 );
-                if triangle.normal().is_none() {
+                let Some(normal) = triangle.normal() else {
                     degenerate += 1;
                     continue;
-                }
+                };
                 triangles.push(triangle);
+                normals.push(normal);
                 triangle_materials.push(material);
             }
         }
@@ -122,6 +126,7 @@ impl Scene {
             path: path.to_path_buf(),
             camera,
             triangles,
+            normals,
             triangle_materials,
             materials,
             material_names,
