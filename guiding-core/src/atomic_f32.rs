@@ -14,13 +14,13 @@ pub(crate) fn load(cell: &AtomicU32) -> f32 {
 
 /// Replaces the value by `next(current)` atomically, retrying when another thread
 /// changed it in between, so no update is lost and no value is ever torn.
-/// Returns the stored value.
-pub(crate) fn update(cell: &AtomicU32, next: impl Fn(f32) -> f32) -> f32 {
+/// Returns the value replaced and the value stored.
+pub(crate) fn update(cell: &AtomicU32, next: impl Fn(f32) -> f32) -> (f32, f32) {
     let mut current = cell.load(Ordering::Relaxed);
     loop {
         let replacement = next(f32::from_bits(current)).to_bits();
         match cell.compare_exchange_weak(current, replacement, Ordering::Relaxed, Ordering::Relaxed) {
-            Ok(_) => return f32::from_bits(replacement),
+            Ok(_) => return (f32::from_bits(current), f32::from_bits(replacement)),
             Err(actual) => current = actual,
         }
     }

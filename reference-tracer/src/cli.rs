@@ -30,7 +30,7 @@ enum Command {
     /// Render a scene; writes IMAGE.exr, IMAGE.png and IMAGE.json (and IMAGE.csv with
     /// error against time when given a reference).
     Render(RenderArgs),
-    /// Render a converged reference image with `nee`.
+    /// Render a converged reference image (with `nee` unless told otherwise).
     Reference(ReferenceArgs),
     /// Run several methods on one scene for the same wall time each; writes
     /// DIR/compare.csv, DIR/compare.md, DIR/error.svg and every method's image.
@@ -93,6 +93,9 @@ struct ReferenceArgs {
     /// Samples per pixel.
     #[arg(long)]
     spp: u32,
+    /// Any unbiased integrator; guided-nee converges fastest on hard scenes.
+    #[arg(long, default_value = "nee", value_parser = parse_method)]
+    integrator: Method,
     /// Output image (.exr).
     #[arg(long)]
     out: PathBuf,
@@ -140,6 +143,10 @@ pub struct TraceOptions {
     /// Guide memory budget, MiB.
     #[arg(long, default_value_t = 2.0)]
     guide_mib: f64,
+    /// Guided methods: seconds of training passes whose samples are discarded (their
+    /// time counts towards --seconds).
+    #[arg(long, default_value_t = 0.0)]
+    train_seconds: f64,
     /// BVH: cwbvh or bvh2.
     #[arg(long, default_value = "cwbvh", value_parser = parse_bvh)]
     bvh: BvhKind,
@@ -396,6 +403,7 @@ pub fn statistics_json(
         "width": image.width,
         "height": image.height,
         "passes": statistics.passes,
+        "training_passes": statistics.training_passes,
         "spp": statistics.passes,
         "paths": c.paths,
         "rays": c.rays,
@@ -446,7 +454,12 @@ fn run_render(args: &RenderArgs) -> Result<(), String> {
             ));
         }
     }
-    let settings = RenderSettings { integrator: options.integrator(args.integrator), budget, seed: options.seed };
+    let settings = RenderSettings {
+        integrator: options.integrator(args.integrator),
+        budget,
+        seed: options.seed,
+        train_seconds: options.train_seconds,
+    };
     let (image, statistics, checkpoints) =
         pool.install(|| render_prepared(&mut prepared, &settings, reference.as_ref(), &[], true));
     write_outputs(&args.out, &image, args.pfm)?;
@@ -478,12 +491,14 @@ fn run_reference(args: &ReferenceArgs) -> Result<(), String> {
         return Err("--spp must be at least 1".into());
     }
     let pool = thread_pool(args.threads)?;
-    let mut prepared = prepare(&args.scene, BvhKind::default(), None)?;
-    let integrator = IntegratorSettings { method: Method::Nee, ..Default::default() };
-    let settings = RenderSettings { integrator, budget: Budget::SamplesPerPixel(args.spp), seed: args.seed };
+    let guide = args.integrator.uses_guide().then(HemisphereGridSettings::default);
+    let mut prepared = prepare(&args.scene, BvhKind::default(), guide)?;
+    let integrator = IntegratorSettings { method: args.integrator, ..Default::default() };
+    let settings =
+        RenderSettings { integrator, budget: Budget::SamplesPerPixel(args.spp), seed: args.seed, train_seconds: 0.0 };
     let (image, statistics, _) = pool.install(|| render_prepared(&mut prepared, &settings, None, &[], true));
     write_outputs(&args.out, &image, false)?;
-    let json = statistics_json(Method::Nee, &prepared, &statistics, &image);
+    let json = statistics_json(args.integrator, &prepared, &statistics, &image);
     std::fs::write(sibling(&args.out, "json"), serde_json::to_string_pretty(&json).unwrap_or_default())
         .map_err(|e| format!("cannot write statistics: {e}"))?;
     eprintln!(
@@ -526,6 +541,7 @@ fn run_compare(args: &CompareArgs) -> Result<(), String> {
             integrator: options.integrator(method),
             budget: Budget::Seconds(args.seconds),
             seed: options.seed,
+            train_seconds: options.train_seconds,
         };
         let (image, statistics, checkpoints) =
             pool.install(|| render_prepared(&mut prepared, &settings, Some(&reference), &report_times, true));

@@ -5,7 +5,10 @@
 //! after each path every vertex with a guide region is updated by Eq. (1).
 
 use glam::{Vec2, Vec3};
-use guiding_core::{Guide, HemisphereGrid, Intersector, Lambertian, Pcg32, ProbeId, Ray, ScatteringFunction};
+use guiding_core::hemisphere::ProbeDistribution;
+use guiding_core::{
+    DirectionalDistribution, Guide, HemisphereGrid, Intersector, Lambertian, Pcg32, ProbeId, Ray, ScatteringFunction,
+};
 
 use crate::color::luminance;
 use crate::material::{Material, ShadingFrame, Surface};
@@ -276,10 +279,24 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
                 break;
             }
 
+            // The region's distribution, located once and used for every sample and pdf.
+            let distribution = match (self.guide, region) {
+                (Some(guide), Some(region)) => Some(guide.distribution(region)),
+                _ => None,
+            };
             // Next-event estimation.
             if settings.method.uses_nee() && !delta {
-                radiance += throughput
-                    * self.direct_light(material, &shading, point, geometric_normal, wo, region, rng, counters);
+                let direct = self.direct_light(
+                    material,
+                    &shading,
+                    point,
+                    geometric_normal,
+                    wo,
+                    distribution.as_ref(),
+                    rng,
+                    counters,
+                );
+                radiance += throughput * direct;
             }
 
             // Choose the next direction: the guide with probability p_guide where a region
@@ -289,10 +306,10 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
                 let Some(s) = material.sample(&shading, wo, u, u_lobe) else { break };
                 (s.wi, s.weight, s.pdf, true)
             } else {
-                let guide_probability = if region.is_some() { settings.guide_probability } else { 0.0 };
-                let (wi, f) = match (self.guide, region) {
-                    (Some(guide), Some(region)) if u_choice < guide_probability => {
-                        let s = guide.sample(region, u);
+                let guide_probability = if distribution.is_some() { settings.guide_probability } else { 0.0 };
+                let (wi, f) = match &distribution {
+                    Some(distribution) if u_choice < guide_probability => {
+                        let s = distribution.sample(u);
                         (s.direction, material.eval(&shading, wo, s.direction))
                     }
                     _ => {
@@ -300,7 +317,7 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
                         (s.wi, s.weight * s.pdf)
                     }
                 };
-                let pdf = self.scatter_pdf(material, &shading, wo, wi, region);
+                let pdf = self.scatter_pdf(material, &shading, wo, wi, distribution.as_ref());
                 if !(pdf.is_finite() && pdf > 0.0) || f == Vec3::ZERO {
                     break;
                 }
@@ -348,15 +365,15 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
         shading: &ShadingFrame,
         wo: Vec3,
         wi: Vec3,
-        region: Option<ProbeId>,
+        distribution: Option<&ProbeDistribution<'_>>,
     ) -> f32 {
         let bsdf_pdf = material.pdf(shading, wo, wi);
-        match (self.guide, region) {
-            (Some(guide), Some(region)) => {
+        match distribution {
+            Some(distribution) => {
                 let p = self.settings.guide_probability;
-                p * guide.pdf(region, wi) + (1.0 - p) * bsdf_pdf
+                p * distribution.pdf(wi) + (1.0 - p) * bsdf_pdf
             }
-            _ => bsdf_pdf,
+            None => bsdf_pdf,
         }
     }
 
@@ -369,7 +386,7 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
         point: Vec3,
         geometric_normal: Vec3,
         wo: Vec3,
-        region: Option<ProbeId>,
+        distribution: Option<&ProbeDistribution<'_>>,
         rng: &mut Pcg32,
         counters: &mut PathCounters,
     ) -> Vec3 {
@@ -401,7 +418,7 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
         if self.intersector.occluded(&Ray::segment(origin, wi, 0.0, t_max)) {
             return Vec3::ZERO;
         }
-        let weight = power_heuristic(light_pdf, self.scatter_pdf(material, shading, wo, wi, region));
+        let weight = power_heuristic(light_pdf, self.scatter_pdf(material, shading, wo, wi, distribution));
         f * emitted * (weight / light_pdf)
     }
 

@@ -30,13 +30,20 @@ pub struct RenderSettings {
     pub budget: Budget,
     /// Seed of every pixel's random numbers.
     pub seed: u64,
+    /// Guided methods only: passes that end within this many seconds train the guide
+    /// and are then discarded from the image. Their time counts towards a `Seconds`
+    /// budget (so comparisons at equal time stay fair); a sample budget counts only the
+    /// passes kept.
+    pub train_seconds: f64,
 }
 
 /// What the passes did.
 #[derive(Clone, Debug, Default)]
 pub struct RenderStatistics {
-    /// Passes completed (= samples per pixel).
+    /// Passes kept in the image (= samples per pixel).
     pub passes: u32,
+    /// Training passes discarded before them.
+    pub training_passes: u32,
     /// Path counters over all passes.
     pub counters: PathCounters,
     /// Wall-clock seconds from the first pass to the last.
@@ -125,6 +132,13 @@ pub fn render<I: Intersector>(
             }
         }
         let seconds = start.elapsed().as_secs_f64();
+        if settings.integrator.method.uses_guide() && seconds < settings.train_seconds {
+            film.iter_mut().for_each(|p| *p = [0.0; 3]);
+            statistics.pass_means.clear();
+            statistics.passes = 0;
+            statistics.training_passes += 1;
+            continue;
+        }
         on_pass(&Progress { passes: statistics.passes, seconds, film: &film, counters: statistics.counters });
         let done = match settings.budget {
             Budget::SamplesPerPixel(spp) => statistics.passes >= spp,

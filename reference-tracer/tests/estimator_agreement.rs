@@ -106,3 +106,23 @@ fn cornell_means_agree_across_integrators_and_update_rules() {
         );
     }
 }
+
+#[test]
+fn door_means_agree_across_integrators() {
+    let scene = support::repository_scene("door", 32, 24);
+    let reference = mean_estimate(&render_scene(&scene, settings(Method::Nee), None, 512, 21));
+    for (i, method) in [Method::Pt, Method::Guided, Method::GuidedNee].into_iter().enumerate() {
+        let guide = Some(HemisphereGridSettings { probe_count: Some(600), ..Default::default() });
+        let estimate = mean_estimate(&render_scene(&scene, settings(method), guide, 512, 200 + i as u64));
+        let combined = (estimate.standard_error.powi(2) + reference.standard_error.powi(2)).sqrt();
+        assert!(
+            (estimate.mean - reference.mean).abs() <= 4.0 * combined,
+            "{}: {} ± {} vs nee {} ± {}",
+            method.name(),
+            estimate.mean,
+            estimate.standard_error,
+            reference.mean,
+            reference.standard_error
+        );
+    }
+}

@@ -70,7 +70,7 @@ pub fn render_scene(
     seed: u64,
 ) -> RenderStatistics {
     let mut prepared = prepare(scene, guiding_obvhs::BvhKind::Cwbvh, guide).unwrap();
-    let settings = RenderSettings { integrator, budget: Budget::SamplesPerPixel(spp), seed };
+    let settings = RenderSettings { integrator, budget: Budget::SamplesPerPixel(spp), seed, train_seconds: 0.0 };
     let guide = prepared.guide.as_mut();
     let (_, statistics) = render(&prepared.scene, &prepared.intersector, guide, &settings, |_| {});
     statistics

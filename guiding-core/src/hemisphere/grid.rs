@@ -26,11 +26,12 @@ use super::settings::HemisphereGridSettings;
 pub struct ProbeId(pub u32);
 
 /// Bytes of a grid's tables for `probes` probes of `patches` patches each, with the
-/// struct itself: per probe a position, a normal and two visit counts (32 bytes); per patch
+/// struct itself: per probe a position, a normal, two visit counts and the Lambertian
+/// sum (36 bytes); per patch
 /// Q, a visit count and a CDF entry (12 bytes); the lookup's bucket table; and the shared
 /// per-patch centre and cosine tables (16 bytes per patch).
 pub(crate) fn table_bytes(probes: usize, patches: usize) -> usize {
-    let per_probe = 3 * 4 + 3 * 4 + 2 * 4 + patches * 12;
+    let per_probe = 3 * 4 + 3 * 4 + 3 * 4 + patches * 12;
     probes.saturating_mul(per_probe)
         + (ProbeLookup::bucket_count(probes) + 1) * 4
         + patches * 16
@@ -89,6 +90,9 @@ pub struct HemisphereGrid {
     /// Each probe's visit count when its CDF was last built: a probe whose count has
     /// not moved since has nothing new to sample from and is skipped by the rebuild.
     visits_at_last_build: Vec<u32>,
+    /// Per probe Σ_k Q_k·∫_k cos θ dω (f32 bits): kept current by every update, made exact
+    /// again at every rebuild, so a Lambertian integral estimate costs one load.
+    lambertian_sums: Vec<AtomicU32>,
     q: Vec<AtomicU32>,
     patch_visits: Vec<AtomicU32>,
     cdf: Vec<f32>,
@@ -200,6 +204,7 @@ impl HemisphereGrid {
             normals: reorder_probe(&state.normals),
             probe_visits: visits_in_order(&state.probe_visits, 1),
             visits_at_last_build: order.iter().map(|&i| state.probe_visits[i as usize]).collect(),
+            lambertian_sums: order.iter().map(|_| atomic_f32::new(0.0)).collect(),
             q: to_atomic_f32(reorder_rows(&state.q)),
             patch_visits: visits_in_order(&state.patch_visits, patches),
             cdf: cdf.unwrap_or_else(|| alloc::vec![0.0; state.q.len()]),
@@ -214,18 +219,31 @@ impl HemisphereGrid {
         if !has_cdf {
             grid.build_cdfs(true);
         }
+        for probe in 0..grid.probe_count() {
+            grid.refresh_lambertian_sum(ProbeId(probe as u32));
+        }
         grid
     }
 
-    /// Rebuilds the CDF of every probe updated since its last build (of all with `all`).
+    /// Recomputes a probe's Lambertian sum exactly from its Q.
+    fn refresh_lambertian_sum(&self, probe: ProbeId) {
+        let sum = weighted_sum(self.q_row(probe), &self.patch_cos_integrals).min(f32::MAX as f64) as f32;
+        self.lambertian_sums[probe.0 as usize].store(sum.to_bits(), Ordering::Relaxed);
+    }
+
+    /// Rebuilds the CDF (and refreshes the Lambertian sum) of every probe updated since
+    /// its last build, or of all with `all`.
     fn build_cdfs(&mut self, all: bool) {
         let patches = self.patch_count();
         let mix = self.settings.uniform_mix;
         let rows = self.cdf.chunks_exact_mut(patches).zip(self.q.chunks_exact(patches));
-        for ((cdf, q), (visits, built)) in rows.zip(self.probe_visits.iter().zip(&mut self.visits_at_last_build)) {
+        let counts = self.probe_visits.iter().zip(&mut self.visits_at_last_build).zip(&self.lambertian_sums);
+        for ((cdf, q), ((visits, built), sum)) in rows.zip(counts) {
             let visits = visits.load(Ordering::Relaxed);
             if all || visits != *built {
                 build_cdf(cdf, mix, |k| atomic_f32::load(&q[k]));
+                let exact = weighted_sum(q, &self.patch_cos_integrals).min(f32::MAX as f64) as f32;
+                sum.store(exact.to_bits(), Ordering::Relaxed);
                 *built = visits;
             }
         }
@@ -310,13 +328,15 @@ impl HemisphereGrid {
         // Make the next rebuild include this probe.
         let built = &mut self.visits_at_last_build[probe.0 as usize];
         *built = built.wrapping_add(1);
+        self.refresh_lambertian_sum(probe);
     }
 
     /// Bytes held by all tables and the struct.
     pub fn memory_bytes(&self) -> usize {
         let per_probe = self.positions.capacity() * 12
             + self.normals.capacity() * 12
-            + (self.probe_visits.capacity() + self.visits_at_last_build.capacity()) * 4;
+            + (self.probe_visits.capacity() + self.visits_at_last_build.capacity() + self.lambertian_sums.capacity())
+                * 4;
         let per_patch = (self.q.capacity() + self.patch_visits.capacity() + self.cdf.capacity()) * 4;
         let shared = self.patch_centers.capacity() * 12 + self.patch_cos_integrals.capacity() * 4;
         per_probe + per_patch + shared + self.lookup.memory_bytes() + core::mem::size_of::<Self>()
@@ -458,7 +478,13 @@ impl Guide for HemisphereGrid {
         let probe_visits = atomic_f32::increment_saturating(&self.probe_visits[probe.0 as usize]);
         let alpha = self.settings.update_rule.learning_rate.alpha(patch_visits, probe_visits, self.epoch);
         let floor = self.settings.q_floor;
-        atomic_f32::update(&self.q[index], |q| blend(q, target, alpha, floor));
+        let (previous, stored) = atomic_f32::update(&self.q[index], |q| blend(q, target, alpha, floor));
+        let change = (stored as f64 - previous as f64) * self.patch_cos_integrals[patch] as f64;
+        if change != 0.0 {
+            atomic_f32::update(&self.lambertian_sums[probe.0 as usize], |sum| {
+                (sum as f64 + change).min(f32::MAX as f64) as f32
+            });
+        }
         UpdateOutcome::Accepted
     }
 
@@ -473,7 +499,10 @@ impl Guide for HemisphereGrid {
         };
         let estimate = match self.settings.update_rule.integral {
             IntegralEstimator::BsdfWeightedSum => match lambertian {
-                Some(albedo) => albedo as f64 / core::f64::consts::PI * weighted_sum(q, &self.patch_cos_integrals),
+                Some(albedo) => {
+                    let sum = atomic_f32::load(&self.lambertian_sums[probe.0 as usize]).max(0.0);
+                    albedo as f64 / core::f64::consts::PI * sum as f64
+                }
                 None => {
                     solid_angle
                         * (0..q.len()).map(|k| atomic_f32::load(&q[k]) as f64 * at_center(k) as f64).sum::<f64>()
