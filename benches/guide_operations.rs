@@ -3,34 +3,17 @@
 //!
 //! `cargo bench --bench guide_operations`
 
+#[path = "../tests/support/mod.rs"]
+mod support;
+
 use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use glam::{Vec2, Vec3};
 use guiding_core::{Guide, HemisphereGrid, HemisphereGridSettings, Lambertian, Pcg32, ProbeSet, Triangle};
 
-/// The six inward-facing walls of the box [-1, 1]³, two triangles each.
-fn box_walls() -> Vec<Triangle> {
-    let corner = |i: u32| {
-        Vec3::new(
-            if i & 1 == 0 { -1.0 } else { 1.0 },
-            if i & 2 == 0 { -1.0 } else { 1.0 },
-            if i & 4 == 0 { -1.0 } else { 1.0 },
-        )
-    };
-    // Quads with counter-clockwise winding seen from inside the box.
-    let quads = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 2, 6, 4], [1, 5, 7, 3], [0, 4, 5, 1], [2, 3, 7, 6]];
-    quads
-        .iter()
-        .flat_map(|q| {
-            let [a, b, c, d] = q.map(corner);
-            [Triangle::new(a, b, c), Triangle::new(a, c, d)]
-        })
-        .collect()
-}
-
 fn bench(c: &mut Criterion) {
-    let walls = box_walls();
+    let walls = support::box_walls();
     let settings = HemisphereGridSettings { probe_count: Some(1000), ..Default::default() };
     let mut grid = HemisphereGrid::build(&walls, settings).expect("grid");
     // Query points: another low-discrepancy set on the same walls, offset so they are

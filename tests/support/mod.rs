@@ -8,21 +8,35 @@ use guiding_core::{
     PatchLayout, ProbeId, Triangle, UpdateRule,
 };
 
-/// The six inward-facing walls of the box [-1, 1]³, two triangles each.
-pub fn box_walls() -> Vec<Triangle> {
-    let corner = |i: u32| {
-        let axis = |bit: u32| if i & bit == 0 { -1.0 } else { 1.0 };
-        Vec3::new(axis(1), axis(2), axis(4))
-    };
-    // Quads wound counter-clockwise seen from inside the box.
-    let quads = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 2, 6, 4], [1, 5, 7, 3], [0, 4, 5, 1], [2, 3, 7, 6]];
+/// Which way a box's faces look.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Winding {
+    /// Front faces point into the box (a room).
+    Inward,
+    /// Front faces point out of the box (a solid).
+    Outward,
+}
+
+/// The 12 triangles of the axis-aligned box `min`–`max`.
+pub fn box_triangles(min: Vec3, max: Vec3, winding: Winding) -> Vec<Triangle> {
+    let corner = |i: u32| Vec3::select(glam::BVec3::new(i & 1 != 0, i & 2 != 0, i & 4 != 0), max, min);
+    // Quads wound counter-clockwise seen from outside.
+    let quads = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 4, 6, 2], [1, 3, 7, 5], [0, 1, 5, 4], [2, 6, 7, 3]];
     quads
         .iter()
         .flat_map(|q| {
             let [a, b, c, d] = q.map(corner);
-            [Triangle::new(a, b, c), Triangle::new(a, c, d)]
+            match winding {
+                Winding::Outward => [Triangle::new(a, b, c), Triangle::new(a, c, d)],
+                Winding::Inward => [Triangle::new(a, c, b), Triangle::new(a, d, c)],
+            }
         })
         .collect()
+}
+
+/// The six inward-facing walls of the box [-1, 1]³.
+pub fn box_walls() -> Vec<Triangle> {
+    box_triangles(Vec3::NEG_ONE, Vec3::ONE, Winding::Inward)
 }
 
 /// What the generic harness needs from a guide beyond the [`Guide`] trait: regions to

@@ -1,12 +1,19 @@
-//! The BVH intersector against a brute-force loop over every triangle, on ≥ 1e5 rays
+//! guiding-obvhs's BVH intersector against a brute-force loop over every triangle, on ≥ 1e5 rays
 //! per case: random triangle soups, closed meshes seen from inside (every ray must hit:
 //! watertightness), rays aimed exactly at shared edges and vertices, and axis-parallel or
 //! nearly axis-parallel directions. Same primitive, t within 1e-5 relative, same
 //! occlusion answer.
 
+mod support;
+
 use glam::Vec3;
 use guiding_core::{Intersector, Pcg32, Ray, Triangle};
 use guiding_obvhs::{BvhKind, ObvhsIntersector, ShearedRay};
+use support::{box_triangles, Winding};
+
+fn closed_box(min: Vec3, max: Vec3) -> Vec<Triangle> {
+    box_triangles(min, max, Winding::Outward)
+}
 
 const KINDS: [BvhKind; 2] = [BvhKind::Bvh2, BvhKind::Cwbvh];
 
@@ -64,25 +71,6 @@ fn closed_sphere(levels: u32, center: Vec3, radius: f32) -> Vec<Triangle> {
     faces
         .iter()
         .map(|f| Triangle::new(center + f[0] * radius, center + f[1] * radius, center + f[2] * radius))
-        .collect()
-}
-
-/// The 12 triangles of an axis-aligned box, wound outwards.
-fn closed_box(min: Vec3, max: Vec3) -> Vec<Triangle> {
-    let corner = |i: u32| {
-        Vec3::new(
-            if i & 1 == 0 { min.x } else { max.x },
-            if i & 2 == 0 { min.y } else { max.y },
-            if i & 4 == 0 { min.z } else { max.z },
-        )
-    };
-    let quads = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 4, 6, 2], [1, 3, 7, 5], [0, 1, 5, 4], [2, 6, 7, 3]];
-    quads
-        .iter()
-        .flat_map(|q| {
-            let [a, b, c, d] = q.map(corner);
-            [Triangle::new(a, b, c), Triangle::new(a, c, d)]
-        })
         .collect()
 }
 
