@@ -10,7 +10,7 @@ use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use glam::{Vec2, Vec3};
-use guiding_core::{Guide, HemisphereGrid, HemisphereGridSettings, Lambertian, Pcg32, ProbeSet, Triangle};
+use guiding_core::{Guide, HemisphereGrid, HemisphereGridSettings, Lambertian, Pcg32, ProbeSet};
 
 fn bench(c: &mut Criterion) {
     let walls = support::box_walls();
