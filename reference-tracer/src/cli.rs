@@ -27,8 +27,8 @@ pub struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
-    /// Render a scene; writes IMAGE.exr, IMAGE.png and IMAGE.json (and IMAGE.csv with
-    /// error against time when given a reference).
+    /// Render a scene; writes IMAGE.exr, IMAGE.png and IMAGE.json (and IMAGE.csv and
+    /// IMAGE.svg with error against time when given a reference).
     Render(RenderArgs),
     /// Render a converged reference image (with `nee` unless told otherwise).
     Reference(ReferenceArgs),
@@ -379,6 +379,7 @@ pub fn statistics_json(
     prepared: &Prepared,
     statistics: &RenderStatistics,
     image: &Image,
+    threads: usize,
 ) -> serde_json::Value {
     let c = &statistics.counters;
     let seconds = statistics.render_seconds.max(1e-9);
@@ -418,7 +419,10 @@ pub fn statistics_json(
             "guide_build_seconds": prepared.times.guide,
             "render_seconds": statistics.render_seconds,
             "guide_rebuild_seconds": statistics.guide_rebuild_seconds,
-            "tracing_seconds": statistics.render_seconds - statistics.guide_rebuild_seconds,
+            // Thread-seconds in guide calls (locate, estimate, sample, pdf, update),
+            // extrapolated from timing 1 path in 64; divide by the thread count for wall time.
+            "guide_call_thread_seconds": c.estimated_guide_seconds(),
+            "threads": threads,
         },
         "guide": guide,
         "warnings": prepared.scene.warnings,
@@ -463,13 +467,15 @@ fn run_render(args: &RenderArgs) -> Result<(), String> {
     let (image, statistics, checkpoints) =
         pool.install(|| render_prepared(&mut prepared, &settings, reference.as_ref(), &[], true));
     write_outputs(&args.out, &image, args.pfm)?;
-    let json = statistics_json(args.integrator, &prepared, &statistics, &image);
+    let json = statistics_json(args.integrator, &prepared, &statistics, &image, pool.current_num_threads());
     let json_path = sibling(&args.out, "json");
     std::fs::write(&json_path, serde_json::to_string_pretty(&json).unwrap_or_default())
         .map_err(|e| format!("cannot write {}: {e}", json_path.display()))?;
     if reference.is_some() {
         let rows = crate::report::checkpoint_rows(args.integrator.name(), &checkpoints);
         crate::report::write_csv(&sibling(&args.out, "csv"), &rows)?;
+        let title = format!("{}: relMSE against time", args.scene.display());
+        crate::report::plot_svg(&sibling(&args.out, "svg"), &rows, &[args.integrator.name().to_string()], &title)?;
     }
     let c = &statistics.counters;
     eprintln!(
@@ -498,7 +504,7 @@ fn run_reference(args: &ReferenceArgs) -> Result<(), String> {
         RenderSettings { integrator, budget: Budget::SamplesPerPixel(args.spp), seed: args.seed, train_seconds: 0.0 };
     let (image, statistics, _) = pool.install(|| render_prepared(&mut prepared, &settings, None, &[], true));
     write_outputs(&args.out, &image, false)?;
-    let json = statistics_json(args.integrator, &prepared, &statistics, &image);
+    let json = statistics_json(args.integrator, &prepared, &statistics, &image, pool.current_num_threads());
     std::fs::write(sibling(&args.out, "json"), serde_json::to_string_pretty(&json).unwrap_or_default())
         .map_err(|e| format!("cannot write statistics: {e}"))?;
     eprintln!(
@@ -547,7 +553,7 @@ fn run_compare(args: &CompareArgs) -> Result<(), String> {
             pool.install(|| render_prepared(&mut prepared, &settings, Some(&reference), &report_times, true));
         let image_path = args.out.join(format!("{}.exr", method.name()));
         write_outputs(&image_path, &image, false)?;
-        let json = statistics_json(method, &prepared, &statistics, &image);
+        let json = statistics_json(method, &prepared, &statistics, &image, pool.current_num_threads());
         std::fs::write(sibling(&image_path, "json"), serde_json::to_string_pretty(&json).unwrap_or_default())
             .map_err(|e| format!("cannot write statistics: {e}"))?;
         rows.extend(crate::report::checkpoint_rows(method.name(), &checkpoints));

@@ -92,6 +92,25 @@ pub struct PathCounters {
     pub vertices: u64,
     /// Guide updates rejected (NaN, infinite or negative targets).
     pub rejected_updates: u64,
+    /// Nanoseconds spent in guide calls on the timed paths (1 in [`TIMED_PATH_STRIDE`]).
+    pub timed_guide_nanos: u64,
+    /// Paths whose guide calls were timed.
+    pub timed_paths: u64,
+}
+
+/// One path in this many has its guide calls timed: timing every call would cost more
+/// than many of the calls themselves.
+pub const TIMED_PATH_STRIDE: u64 = 64;
+
+impl PathCounters {
+    /// Estimated seconds spent in guide calls over all paths, extrapolated from the
+    /// timed ones.
+    pub fn estimated_guide_seconds(&self) -> f64 {
+        if self.timed_paths == 0 {
+            return 0.0;
+        }
+        self.timed_guide_nanos as f64 * 1e-9 * self.paths as f64 / self.timed_paths as f64
+    }
 }
 
 impl std::ops::Add for PathCounters {
@@ -103,6 +122,8 @@ impl std::ops::Add for PathCounters {
             rays: self.rays + o.rays,
             vertices: self.vertices + o.vertices,
             rejected_updates: self.rejected_updates + o.rejected_updates,
+            timed_guide_nanos: self.timed_guide_nanos + o.timed_guide_nanos,
+            timed_paths: self.timed_paths + o.timed_paths,
         }
     }
 }
@@ -133,6 +154,26 @@ pub struct LearningVertex {
 #[derive(Default)]
 pub struct PathScratch {
     vertices: Vec<LearningVertex>,
+    clock: GuideClock,
+}
+
+/// Accumulates the time of guide calls on the paths chosen for timing.
+#[derive(Default)]
+struct GuideClock {
+    enabled: bool,
+    nanos: u64,
+}
+
+impl GuideClock {
+    fn time<T>(&mut self, call: impl FnOnce() -> T) -> T {
+        if !self.enabled {
+            return call();
+        }
+        let start = std::time::Instant::now();
+        let result = call();
+        self.nanos += start.elapsed().as_nanos() as u64;
+        result
+    }
 }
 
 /// A BSDF as the guide's integral estimate sees it: scalar fs·cos (luminance).
@@ -205,6 +246,9 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
         let settings = &self.settings;
         let learning = settings.learn && self.guide.is_some();
         scratch.vertices.clear();
+        scratch.clock =
+            GuideClock { enabled: self.guide.is_some() && counters.paths % TIMED_PATH_STRIDE == 0, nanos: 0 };
+        let clock = &mut scratch.clock;
         let mut radiance = Vec3::ZERO;
         let mut throughput = Vec3::ONE;
         // The previous vertex: its position, the pdf of the direction it sampled, and
@@ -253,25 +297,18 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
             let normal = shading.frame.normal;
             let delta = material.is_delta();
             let region = match self.guide {
-                Some(guide) if !delta => guide.locate(point, normal),
+                Some(guide) if !delta => clock.time(|| guide.locate(point, normal)),
                 _ => None,
             };
             if learning && !delta {
                 if let (Some(last), Some(region), Some(guide)) = (scratch.vertices.last_mut(), region, self.guide) {
-                    let estimate = match material.surface {
-                        Surface::Diffuse { albedo } => guide.estimate_integral(
-                            region,
-                            wo,
-                            &Lambertian { normal, albedo: luminance(albedo) },
-                            rng.next_vec2(),
-                        ),
-                        _ => guide.estimate_integral(
-                            region,
-                            wo,
-                            &ScalarBsdf { material, shading: &shading },
-                            rng.next_vec2(),
-                        ),
-                    };
+                    let u = rng.next_vec2();
+                    let estimate = clock.time(|| match material.surface {
+                        Surface::Diffuse { albedo } => {
+                            guide.estimate_integral(region, wo, &Lambertian { normal, albedo: luminance(albedo) }, u)
+                        }
+                        _ => guide.estimate_integral(region, wo, &ScalarBsdf { material, shading: &shading }, u),
+                    });
                     last.onward = Onward::Integral(estimate);
                 }
             }
@@ -281,7 +318,7 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
 
             // The region's distribution, located once and used for every sample and pdf.
             let distribution = match (self.guide, region) {
-                (Some(guide), Some(region)) => Some(guide.distribution(region)),
+                (Some(guide), Some(region)) => Some(clock.time(|| guide.distribution(region))),
                 _ => None,
             };
             // Next-event estimation.
@@ -294,6 +331,7 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
                     wo,
                     distribution.as_ref(),
                     rng,
+                    clock,
                     counters,
                 );
                 radiance += throughput * direct;
@@ -309,7 +347,7 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
                 let guide_probability = if distribution.is_some() { settings.guide_probability } else { 0.0 };
                 let (wi, f) = match &distribution {
                     Some(distribution) if u_choice < guide_probability => {
-                        let s = distribution.sample(u);
+                        let s = clock.time(|| distribution.sample(u));
                         (s.direction, material.eval(&shading, wo, s.direction))
                     }
                     _ => {
@@ -317,7 +355,7 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
                         (s.wi, s.weight * s.pdf)
                     }
                 };
-                let pdf = self.scatter_pdf(material, &shading, wo, wi, distribution.as_ref());
+                let pdf = self.scatter_pdf(material, &shading, wo, wi, distribution.as_ref(), clock);
                 if !(pdf.is_finite() && pdf > 0.0) || f == Vec3::ZERO {
                     break;
                 }
@@ -352,7 +390,12 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
             counters.nonzero_paths += 1;
         }
         if learning {
-            counters.rejected_updates += self.learn_from_path(&scratch.vertices);
+            let vertices = &scratch.vertices;
+            counters.rejected_updates += scratch.clock.time(|| self.learn_from_path(vertices));
+        }
+        if scratch.clock.enabled {
+            counters.timed_paths += 1;
+            counters.timed_guide_nanos += scratch.clock.nanos;
         }
         radiance
     }
@@ -366,12 +409,13 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
         wo: Vec3,
         wi: Vec3,
         distribution: Option<&ProbeDistribution<'_>>,
+        clock: &mut GuideClock,
     ) -> f32 {
         let bsdf_pdf = material.pdf(shading, wo, wi);
         match distribution {
             Some(distribution) => {
                 let p = self.settings.guide_probability;
-                p * distribution.pdf(wi) + (1.0 - p) * bsdf_pdf
+                p * clock.time(|| distribution.pdf(wi)) + (1.0 - p) * bsdf_pdf
             }
             None => bsdf_pdf,
         }
@@ -388,6 +432,7 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
         wo: Vec3,
         distribution: Option<&ProbeDistribution<'_>>,
         rng: &mut Pcg32,
+        clock: &mut GuideClock,
         counters: &mut PathCounters,
     ) -> Vec3 {
         let (u_choice, u_select, u) = (rng.next_f32(), rng.next_f32(), rng.next_vec2());
@@ -418,7 +463,7 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
         if self.intersector.occluded(&Ray::segment(origin, wi, 0.0, t_max)) {
             return Vec3::ZERO;
         }
-        let weight = power_heuristic(light_pdf, self.scatter_pdf(material, shading, wo, wi, distribution));
+        let weight = power_heuristic(light_pdf, self.scatter_pdf(material, shading, wo, wi, distribution, clock));
         f * emitted * (weight / light_pdf)
     }
 

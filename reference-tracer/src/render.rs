@@ -96,7 +96,9 @@ pub fn render<I: Intersector>(
         let pass = statistics.passes;
         let tracer = PathTracer::new(scene, intersector, guide.as_deref(), settings.integrator);
         let pass_seed = settings.seed ^ (pass as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15);
-        let (counters, pass_sum) = film
+        // Rows come back in order, so the pass sum is added up in the same order on every
+        // run: renders that do not learn are reproducible to the last bit.
+        let rows: Vec<(PathCounters, [f64; 3])> = film
             .par_chunks_mut(width)
             .enumerate()
             .map_init(PathScratch::default, |scratch, (y, row)| {
@@ -116,10 +118,10 @@ pub fn render<I: Intersector>(
                 }
                 (counters, row_sum)
             })
-            .reduce(
-                || (PathCounters::default(), [0.0; 3]),
-                |(ca, sa), (cb, sb)| (ca + cb, [sa[0] + sb[0], sa[1] + sb[1], sa[2] + sb[2]]),
-            );
+            .collect();
+        let (counters, pass_sum) = rows.iter().fold((PathCounters::default(), [0.0f64; 3]), |(c, s), (rc, rs)| {
+            (c + *rc, [s[0] + rs[0], s[1] + rs[1], s[2] + rs[2]])
+        });
         let pixels = (width * height) as f64;
         statistics.pass_means.push(pass_sum.map(|s| s / pixels));
         statistics.counters = statistics.counters + counters;

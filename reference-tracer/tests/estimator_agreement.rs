@@ -126,3 +126,15 @@ fn door_means_agree_across_integrators() {
         );
     }
 }
+
+#[test]
+fn unguided_renders_are_deterministic_for_a_seed() {
+    let scene = support::repository_scene("cornell", 24, 24);
+    for method in [Method::Pt, Method::Nee] {
+        let first = render_scene(&scene, settings(method), None, 4, 5).pass_means;
+        let second = render_scene(&scene, settings(method), None, 4, 5).pass_means;
+        assert_eq!(first, second, "{}", method.name());
+        let other_seed = render_scene(&scene, settings(method), None, 4, 6).pass_means;
+        assert_ne!(first, other_seed, "{}", method.name());
+    }
+}
