@@ -75,7 +75,7 @@ pub struct IntegratorSettings {
 
 impl Default for IntegratorSettings {
     fn default() -> Self {
-        Self { method: Method::Nee, max_depth: 32, rr_depth: 4, guide_probability: 0.5, learn: true }
+        Self { method: Method::Nee, max_depth: 32, rr_depth: 4, guide_probability: 0.3, learn: true }
     }
 }
 
@@ -142,11 +142,21 @@ enum Onward {
 }
 
 /// One path vertex as the learning update sees it.
+///
+/// With next-event estimation, Q must not learn the light that next-event estimation
+/// already brings: a guide that also chases the lights starves the other directions,
+/// whose BSDF samples then carry mixture weights up to 1/(1-p_guide) at every bounce,
+/// and those compound into fireflies. So the target of Eq. (1) is split by strategy:
+/// `arriving` holds the next vertex's emission times the MIS weight it received as a
+/// BSDF/guide hit, plus the light the next vertex's own next-event sample reflects back
+/// (which is indirect light for this vertex); `onward` holds ∫ Q fs cos at the next
+/// vertex, whose Q was learned the same way. Without next-event estimation the weights
+/// are 1 and this is exactly Eq. (1).
 #[derive(Clone, Copy, Debug)]
 pub struct LearningVertex {
     region: Option<ProbeId>,
     direction: Vec3,
-    emitted: f32,
+    arriving: f32,
     onward: Onward,
 }
 
@@ -268,7 +278,7 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
                     };
                     radiance += throughput * emitted * weight;
                     if let Some(last) = scratch.vertices.last_mut() {
-                        last.emitted = luminance(emitted);
+                        last.arriving += weight * luminance(emitted);
                     }
                 }
                 break;
@@ -290,7 +300,7 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
                 };
                 radiance += throughput * material.emission * weight;
                 if let Some(last) = scratch.vertices.last_mut() {
-                    last.emitted = luminance(material.emission);
+                    last.arriving += weight * luminance(material.emission);
                 }
             }
             let shading = material.shading_frame(geometric_normal, wo);
@@ -335,6 +345,9 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
                     counters,
                 );
                 radiance += throughput * direct;
+                if let Some(last) = scratch.vertices.last_mut() {
+                    last.arriving += luminance(direct);
+                }
             }
 
             // Choose the next direction: the guide with probability p_guide where a region
@@ -381,7 +394,7 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
                         last.onward = Onward::Carry(luminance(factor));
                     }
                 }
-                scratch.vertices.push(LearningVertex { region, direction: wi, emitted: 0.0, onward: Onward::End });
+                scratch.vertices.push(LearningVertex { region, direction: wi, arriving: 0.0, onward: Onward::End });
             }
             ray = Ray::new(self.spawn(point, geometric_normal, wi), wi);
             previous = Some((point, pdf, sampled_delta));
@@ -479,7 +492,7 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
                 Onward::Carry(factor) => factor * next_target,
                 Onward::End => 0.0,
             };
-            let target = vertex.emitted + onward;
+            let target = vertex.arriving + onward;
             if let Some(region) = vertex.region {
                 if guide.update(region, vertex.direction, target) != guiding_core::UpdateOutcome::Accepted {
                     rejected += (!target.is_finite() || target < 0.0) as u64;

@@ -216,11 +216,12 @@ impl HemisphereGrid {
             rejected_negative: AtomicUsize::new(state.rejected_negative),
             settings,
         };
-        if !has_cdf {
+        if has_cdf {
+            for probe in 0..grid.probe_count() {
+                grid.refresh_lambertian_sum(ProbeId(probe as u32));
+            }
+        } else {
             grid.build_cdfs(true);
-        }
-        for probe in 0..grid.probe_count() {
-            grid.refresh_lambertian_sum(ProbeId(probe as u32));
         }
         grid
     }
@@ -236,12 +237,17 @@ impl HemisphereGrid {
     fn build_cdfs(&mut self, all: bool) {
         let patches = self.patch_count();
         let mix = self.settings.uniform_mix;
+        let exponent = self.settings.sampling_exponent;
         let rows = self.cdf.chunks_exact_mut(patches).zip(self.q.chunks_exact(patches));
         let counts = self.probe_visits.iter().zip(&mut self.visits_at_last_build).zip(&self.lambertian_sums);
         for ((cdf, q), ((visits, built), sum)) in rows.zip(counts) {
             let visits = visits.load(Ordering::Relaxed);
             if all || visits != *built {
-                build_cdf(cdf, mix, |k| atomic_f32::load(&q[k]));
+                if exponent == 1.0 {
+                    build_cdf(cdf, mix, |k| atomic_f32::load(&q[k]));
+                } else {
+                    build_cdf(cdf, mix, |k| libm::powf(atomic_f32::load(&q[k]), exponent));
+                }
                 let exact = weighted_sum(q, &self.patch_cos_integrals).min(f32::MAX as f64) as f32;
                 sum.store(exact.to_bits(), Ordering::Relaxed);
                 *built = visits;
@@ -592,5 +598,56 @@ impl Guide for HemisphereGrid {
 
     fn from_bytes(bytes: &[u8]) -> Result<Self, Error> {
         super::serialize::decode(bytes)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::hemisphere::ProbeSet;
+    use alloc::vec;
+
+    fn one_probe(settings: HemisphereGridSettings) -> (HemisphereGrid, ProbeId) {
+        let probes = ProbeSet { positions: vec![Vec3::ZERO], normals: vec![Vec3::Z], spacing: 1.0 };
+        let grid = HemisphereGrid::from_probes(&probes, settings).unwrap();
+        let probe = grid.locate(Vec3::ZERO, Vec3::Z).unwrap();
+        (grid, probe)
+    }
+
+    /// Q^γ with γ < 1 keeps the order of the patches but moves their probabilities
+    /// towards uniform.
+    #[test]
+    fn a_sampling_exponent_below_one_tempers_the_distribution() {
+        let probabilities = |exponent: f32| {
+            let settings =
+                HemisphereGridSettings { uniform_mix: 0.0, sampling_exponent: exponent, ..Default::default() };
+            let (mut grid, probe) = one_probe(settings);
+            let values: alloc::vec::Vec<f32> = (0..grid.patch_count()).map(|k| 1.0 + (k % 4) as f32 * 10.0).collect();
+            grid.set_q_values(probe, &values);
+            grid.rebuild_sampling();
+            let row = &grid.cdf()[..grid.patch_count()];
+            (0..4).map(|k| cdf_probability(row, k)).collect::<alloc::vec::Vec<f32>>()
+        };
+        let (sharp, tempered) = (probabilities(1.0), probabilities(0.5));
+        assert!((sharp[3] / sharp[0] - 31.0).abs() < 0.01, "{sharp:?}");
+        assert!((tempered[3] / tempered[0] - libm::sqrtf(31.0)).abs() < 0.01, "{tempered:?}");
+    }
+
+    /// The running Lambertian sum that makes the Lambertian estimate O(1) matches the
+    /// exact sum after any mix of updates and rebuilds.
+    #[test]
+    fn the_running_lambertian_sum_matches_the_exact_sum() {
+        let (mut grid, probe) = one_probe(HemisphereGridSettings::default());
+        let mut rng = crate::Pcg32::new(4, 4);
+        for round in 0..5 {
+            for _ in 0..2000 {
+                let d = crate::UniformHemisphere::new(Vec3::Z).sample(rng.next_vec2()).direction;
+                grid.update(probe, d, rng.next_f32() * 10.0 * (round + 1) as f32);
+            }
+            let running = atomic_f32::load(&grid.lambertian_sums[0]) as f64;
+            let exact = weighted_sum(grid.q_row(probe), &grid.patch_cos_integrals);
+            assert!((running - exact).abs() <= 1e-4 * exact, "{running} vs {exact}");
+            grid.rebuild_sampling();
+        }
     }
 }

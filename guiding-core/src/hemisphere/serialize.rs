@@ -4,6 +4,7 @@
 //! "LODESTAR" magic (8 bytes) · u32 format version · u32 structure tag (1)
 //! settings: u32 mapping · u32 nu · u32 nv · u32 two_sided · f32 max_normal_angle_deg
 //!           · u32 max_search_rings · f32 initial_q · f32 q_floor · f32 uniform_mix
+//!           · f32 sampling_exponent
 //!           · u32 learning-rate kind · f32 its parameter · u32 integral estimator
 //!           · u32 budget low · u32 budget high · u32 probe_count (0 = from budget)
 //! state:    f32 probe_spacing · u32 epoch · u32×2 rejected non-finite · u32×2 rejected
@@ -55,6 +56,7 @@ pub(crate) fn encode(grid: &HemisphereGrid) -> Vec<u8> {
     w.put_f32(s.initial_q);
     w.put_f32(s.q_floor);
     w.put_f32(s.uniform_mix);
+    w.put_f32(s.sampling_exponent);
     let (kind, parameter) = match s.update_rule.learning_rate {
         LearningRate::Exponential { alpha } => (0, alpha),
         LearningRate::SimpleAverage => (1, 0.0),
@@ -115,6 +117,7 @@ fn read_settings(r: &mut ByteReader<'_>) -> Result<HemisphereGridSettings, Error
     let initial_q = r.f32()?;
     let q_floor = r.f32()?;
     let uniform_mix = r.f32()?;
+    let sampling_exponent = r.f32()?;
     let kind = r.u32()?;
     let parameter = r.f32()?;
     let learning_rate = match kind {
@@ -145,6 +148,7 @@ fn read_settings(r: &mut ByteReader<'_>) -> Result<HemisphereGridSettings, Error
         initial_q,
         q_floor,
         uniform_mix,
+        sampling_exponent,
         update_rule: UpdateRule { learning_rate, integral },
     };
     settings.validate()?;
@@ -312,8 +316,8 @@ mod tests {
         let bytes = grid.to_bytes();
         let probes = grid.probe_count();
         let entries = probes * grid.patch_count();
-        // Header 16 bytes, settings 60, state scalars 28: the positions start at byte 104.
-        let positions = 104;
+        // Header 16 bytes, settings 64, state scalars 28: the positions start at byte 108.
+        let positions = 108;
         let q = positions + probes * 28;
         let cdf = q + entries * 8;
         let cases: [(usize, [u8; 4], &str); 4] = [
@@ -336,8 +340,8 @@ mod tests {
         reseal(&mut mapping);
         assert!(matches!(decode_error(&mapping), Error::Decode(DecodeError::InvalidField { field: "mapping", .. })));
         let mut alpha = bytes;
-        alpha[52..56].copy_from_slice(&0u32.to_le_bytes());
-        alpha[56..60].copy_from_slice(&7.0f32.to_le_bytes());
+        alpha[56..60].copy_from_slice(&0u32.to_le_bytes());
+        alpha[60..64].copy_from_slice(&7.0f32.to_le_bytes());
         reseal(&mut alpha);
         assert!(matches!(decode_error(&alpha), Error::InvalidSetting { name: "learning_rate.alpha", .. }));
     }

@@ -37,6 +37,10 @@ pub struct HemisphereGridSettings {
     /// Share of each probe's sampling probability spread uniformly over its patches, in
     /// [0, 1]: keeps every patch at least `uniform_mix / patches` likely.
     pub uniform_mix: f32,
+    /// Exponent γ in (0, 1] of the sampling weights Q^γ: 1 samples ∝ Q (the paper);
+    /// smaller values temper a peaked Q towards uniform, so directions Q has not (yet)
+    /// learned to be bright are not starved.
+    pub sampling_exponent: f32,
     /// Learning rate and integral estimator.
     pub update_rule: UpdateRule,
 }
@@ -53,6 +57,7 @@ impl Default for HemisphereGridSettings {
             initial_q: 1e-2,
             q_floor: f32::MIN_POSITIVE,
             uniform_mix: 0.02,
+            sampling_exponent: 1.0,
             update_rule: UpdateRule::default(),
         }
     }
@@ -84,7 +89,9 @@ impl HemisphereGridSettings {
         let initial = self.initial_q;
         check(initial >= floor && initial.is_finite(), "initial_q", initial as f64, "finite and at least q_floor")?;
         let mix = self.uniform_mix;
-        check((0.0..=1.0).contains(&mix), "uniform_mix", mix as f64, "in [0, 1]")
+        check((0.0..=1.0).contains(&mix), "uniform_mix", mix as f64, "in [0, 1]")?;
+        let exponent = self.sampling_exponent;
+        check(exponent > 0.0 && exponent <= 1.0, "sampling_exponent", exponent as f64, "in (0, 1]")
     }
 
     /// Bytes of all tables of a grid with `probes` probes (see
