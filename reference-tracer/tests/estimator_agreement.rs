@@ -67,10 +67,8 @@ fn white_furnace_converges_to_le_over_one_minus_albedo() {
     }
 }
 
-#[test]
-fn cornell_means_agree_across_integrators_and_update_rules() {
-    let scene = support::repository_scene("cornell", 32, 32);
-    let reference = mean_estimate(&render_scene(&scene, settings(Method::Nee), None, 256, 11));
+/// pt, then guided under every learning rate × integral estimator, then guided-nee.
+fn methods_and_rules() -> Vec<(String, Method, Option<UpdateRule>)> {
     let mut cases: Vec<(String, Method, Option<UpdateRule>)> = vec![("pt".into(), Method::Pt, None)];
     let rates = [
         LearningRate::SimpleAverage,
@@ -87,14 +85,20 @@ fn cornell_means_agree_across_integrators_and_update_rules() {
         }
     }
     cases.push(("guided-nee".into(), Method::GuidedNee, Some(UpdateRule::default())));
-    for (i, (name, method, rule)) in cases.into_iter().enumerate() {
+    cases
+}
+
+/// Every method and rule agrees with a long `nee` render of the same scene.
+fn assert_means_agree(scene: &std::path::Path, probes: usize, spp: u32, reference_spp: u32) {
+    let reference = mean_estimate(&render_scene(scene, settings(Method::Nee), None, reference_spp, 11));
+    for (i, (name, method, rule)) in methods_and_rules().into_iter().enumerate() {
         let guide = rule.map(|update_rule| HemisphereGridSettings {
             update_rule,
-            probe_count: Some(400),
+            probe_count: Some(probes),
             ..Default::default()
         });
-        let spp = if method == Method::Pt { 512 } else { 128 };
-        let estimate = mean_estimate(&render_scene(&scene, settings(method), guide, spp, 100 + i as u64));
+        let spp = if method == Method::Pt { 4 * spp } else { spp };
+        let estimate = mean_estimate(&render_scene(scene, settings(method), guide, spp, 100 + i as u64));
         let combined = (estimate.standard_error.powi(2) + reference.standard_error.powi(2)).sqrt();
         assert!(
             (estimate.mean - reference.mean).abs() <= 4.0 * combined,
@@ -108,23 +112,13 @@ fn cornell_means_agree_across_integrators_and_update_rules() {
 }
 
 #[test]
-fn door_means_agree_across_integrators() {
-    let scene = support::repository_scene("door", 32, 24);
-    let reference = mean_estimate(&render_scene(&scene, settings(Method::Nee), None, 512, 21));
-    for (i, method) in [Method::Pt, Method::Guided, Method::GuidedNee].into_iter().enumerate() {
-        let guide = Some(HemisphereGridSettings { probe_count: Some(600), ..Default::default() });
-        let estimate = mean_estimate(&render_scene(&scene, settings(method), guide, 512, 200 + i as u64));
-        let combined = (estimate.standard_error.powi(2) + reference.standard_error.powi(2)).sqrt();
-        assert!(
-            (estimate.mean - reference.mean).abs() <= 4.0 * combined,
-            "{}: {} ± {} vs nee {} ± {}",
-            method.name(),
-            estimate.mean,
-            estimate.standard_error,
-            reference.mean,
-            reference.standard_error
-        );
-    }
+fn cornell_means_agree_across_integrators_and_update_rules() {
+    assert_means_agree(&support::repository_scene("cornell", 32, 32), 400, 128, 256);
+}
+
+#[test]
+fn door_means_agree_across_integrators_and_update_rules() {
+    assert_means_agree(&support::repository_scene("door", 32, 24), 600, 256, 512);
 }
 
 #[test]
