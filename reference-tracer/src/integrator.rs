@@ -90,8 +90,6 @@ pub struct PathCounters {
     pub rays: u64,
     /// Surface vertices (hits) over all paths.
     pub vertices: u64,
-    /// Guide updates rejected (NaN, infinite or negative targets).
-    pub rejected_updates: u64,
     /// Nanoseconds spent in guide calls on the timed paths (1 in [`TIMED_PATH_STRIDE`]).
     pub timed_guide_nanos: u64,
     /// Paths whose guide calls were timed.
@@ -121,7 +119,6 @@ impl std::ops::Add for PathCounters {
             nonzero_paths: self.nonzero_paths + o.nonzero_paths,
             rays: self.rays + o.rays,
             vertices: self.vertices + o.vertices,
-            rejected_updates: self.rejected_updates + o.rejected_updates,
             timed_guide_nanos: self.timed_guide_nanos + o.timed_guide_nanos,
             timed_paths: self.timed_paths + o.timed_paths,
         }
@@ -404,7 +401,7 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
         }
         if learning {
             let vertices = &scratch.vertices;
-            counters.rejected_updates += scratch.clock.time(|| self.learn_from_path(vertices));
+            scratch.clock.time(|| self.learn_from_path(vertices));
         }
         if scratch.clock.enabled {
             counters.timed_paths += 1;
@@ -480,11 +477,10 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
         f * emitted * (weight / light_pdf)
     }
 
-    /// Applies Eq. (1) along a finished path, last vertex first; returns the number of
-    /// rejected targets.
-    fn learn_from_path(&self, vertices: &[LearningVertex]) -> u64 {
-        let Some(guide) = self.guide else { return 0 };
-        let mut rejected = 0;
+    /// Applies Eq. (1) along a finished path, last vertex first. Rejected targets are
+    /// counted by the guide itself (its `stats()`).
+    fn learn_from_path(&self, vertices: &[LearningVertex]) {
+        let Some(guide) = self.guide else { return };
         let mut next_target = 0.0f32;
         for vertex in vertices.iter().rev() {
             let onward = match vertex.onward {
@@ -494,13 +490,10 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
             };
             let target = vertex.arriving + onward;
             if let Some(region) = vertex.region {
-                if guide.update(region, vertex.direction, target) != guiding_core::UpdateOutcome::Accepted {
-                    rejected += (!target.is_finite() || target < 0.0) as u64;
-                }
+                guide.update(region, vertex.direction, target);
             }
             next_target = target;
         }
-        rejected
     }
 
     /// Image-space jitter plus camera ray for pixel (x, y).

@@ -1,7 +1,5 @@
 //! Error of an image against a reference.
 
-use glam::Vec3;
-
 use crate::output::Image;
 
 /// Errors averaged over pixels and channels.
@@ -34,14 +32,10 @@ pub fn image_error(image: &Image, reference: &Image) -> Option<ImageError> {
     Some(ImageError { relmse: sums[0] / n, mse: sums[1] / n, mape: sums[2] / n })
 }
 
-/// Mean of a colour's channels.
-pub fn channel_mean(c: Vec3) -> f32 {
-    (c.x + c.y + c.z) / 3.0
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use glam::Vec3;
 
     #[test]
     fn errors_of_known_images() {

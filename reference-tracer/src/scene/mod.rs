@@ -140,11 +140,6 @@ impl Scene {
     pub fn material(&self, triangle: u32) -> &Material {
         &self.materials[self.triangle_materials[triangle as usize] as usize]
     }
-
-    /// Whether any material has a delta (specular) lobe.
-    pub fn has_specular(&self) -> bool {
-        self.materials.iter().any(Material::is_delta)
-    }
 }
 
 fn finite3(values: [f32; 3]) -> Option<Vec3> {
