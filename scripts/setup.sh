@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Installs what building and testing Lodestar needs on a fresh Debian machine, and
-# nothing that is already there: a stable Rust toolchain with rustfmt and clippy, and a
-# C compiler for build scripts. Safe to run any number of times.
+# nothing that is already there: a stable Rust toolchain with rustfmt and clippy, C and
+# C++ compilers (build scripts; the C API's C test and C++ example) and valgrind (which
+# runs those clean). Safe to run any number of times.
 set -euo pipefail
 
 as_root() {
@@ -9,7 +10,8 @@ as_root() {
 }
 
 missing_packages=()
-command -v cc >/dev/null 2>&1 || missing_packages+=(build-essential)
+command -v cc >/dev/null 2>&1 && command -v g++ >/dev/null 2>&1 || missing_packages+=(build-essential)
+command -v valgrind >/dev/null 2>&1 || missing_packages+=(valgrind)
 command -v curl >/dev/null 2>&1 || missing_packages+=(curl ca-certificates)
 command -v pkg-config >/dev/null 2>&1 || missing_packages+=(pkg-config)
 if [ ${#missing_packages[@]} -gt 0 ]; then

@@ -1,0 +1,426 @@
+//! The guide handle and the per-vertex calls: locate, sample, pdf, update, estimate.
+
+use std::cell::Cell;
+use std::ffi::c_void;
+
+use glam::{Vec2, Vec3};
+use guiding_core::{Guide, HemisphereGrid, Lambertian, ProbeId, ScatteringFunction, Triangle, UpdateOutcome};
+
+use crate::arguments::{borrow, direction, finite, point, slice, uniform, Output};
+use crate::config::LodestarGuideConfig;
+use crate::status::{guarded, Failure, LodestarStatus};
+use crate::types::{
+    LodestarDirectionSample, LodestarGuideStats, LodestarRegion, LodestarUpdateOutcome, LodestarVec3,
+    LODESTAR_NO_REGION,
+};
+
+/// An opaque guide: create with `lodestar_guide_create` or
+/// `lodestar_guide_load`, free with
+/// `lodestar_guide_release`.
+pub struct LodestarGuide {
+    pub(crate) structure: GuideStructure,
+}
+
+/// The structures a handle can hold; every call dispatches on it.
+pub(crate) enum GuideStructure {
+    Hemisphere(HemisphereGrid),
+}
+
+impl LodestarGuide {
+    pub(crate) fn into_raw(self) -> *mut LodestarGuide {
+        Box::into_raw(Box::new(self))
+    }
+
+    fn stats(&self) -> guiding_core::GuideStats {
+        match &self.structure {
+            GuideStructure::Hemisphere(grid) => grid.stats(),
+        }
+    }
+
+    pub(crate) fn to_bytes(&self) -> Vec<u8> {
+        match &self.structure {
+            GuideStructure::Hemisphere(grid) => grid.to_bytes(),
+        }
+    }
+
+    /// The grid's probe for a region the caller handed back, checked against this guide.
+    fn probe(grid: &HemisphereGrid, region: LodestarRegion) -> Result<ProbeId, Failure> {
+        if (region.index as usize) < grid.probe_count() {
+            Ok(ProbeId(region.index))
+        } else {
+            let why = if region.index == LODESTAR_NO_REGION {
+                "LODESTAR_NO_REGION (locate found none: sample the BSDF alone)".to_string()
+            } else {
+                format!("past this guide's {} regions", grid.probe_count())
+            };
+            Err(Failure::new(LodestarStatus::InvalidRegion, format!("`region.index` = {} is {why}", region.index)))
+        }
+    }
+}
+
+/// Borrows a handle for a shared (thread-safe) call.
+///
+/// # Safety
+/// A non-NULL `guide` must come from create/load and not yet be released.
+unsafe fn shared<'a>(guide: *const LodestarGuide) -> Result<&'a LodestarGuide, Failure> {
+    // SAFETY: the caller's contract.
+    unsafe { borrow(guide, "guide") }
+}
+
+/// Creates a guide over a triangle mesh: `vertex_count` positions (3 floats each, scene
+/// units) and `triangle_count` triangles (3 indices each, counter-clockwise seen from
+/// the front, which is the side probes face unless `config->two_sided`). The guide keeps
+/// no pointer to the arrays. On success `*out_guide` owns the new guide.
+///
+/// # Safety
+/// Pointers must be NULL or valid: `config` for one config, `positions` for
+/// `3·vertex_count` floats, `indices` for `3·triangle_count` indices, `out_guide` for
+/// writing one pointer.
+#[no_mangle]
+pub unsafe extern "C" fn lodestar_guide_create(
+    config: *const LodestarGuideConfig,
+    positions: *const f32,
+    vertex_count: usize,
+    indices: *const u32,
+    triangle_count: usize,
+    out_guide: *mut *mut LodestarGuide,
+) -> LodestarStatus {
+    guarded("lodestar_guide_create", || {
+        // SAFETY (all four): the caller's contract.
+        let config = unsafe { borrow(config, "config") }?;
+        let coordinates = unsafe { slice(positions, vertex_count.saturating_mul(3), "positions") }?;
+        let indices = unsafe { slice(indices, triangle_count.saturating_mul(3), "indices") }?;
+        let out = unsafe { Output::new(out_guide, "out_guide") }?;
+        let settings = config.settings()?;
+        let vertex = |t: usize, corner: usize| -> Result<Vec3, Failure> {
+            let v = indices[3 * t + corner] as usize;
+            if v >= vertex_count {
+                return Err(Failure::new(
+                    LodestarStatus::InvalidArgument,
+                    format!("`indices[{}]` = {v} (triangle {t}) is past vertex_count = {vertex_count}", 3 * t + corner),
+                ));
+            }
+            let p = Vec3::from_slice(&coordinates[3 * v..3 * v + 3]);
+            if !p.is_finite() {
+                return Err(Failure::new(
+                    LodestarStatus::NonFiniteArgument,
+                    format!("`positions` of vertex {v} (triangle {t}) = ({}, {}, {}) is not finite", p.x, p.y, p.z),
+                ));
+            }
+            Ok(p)
+        };
+        let triangles = (0..triangle_count)
+            .map(|t| Ok(Triangle::new(vertex(t, 0)?, vertex(t, 1)?, vertex(t, 2)?)))
+            .collect::<Result<Vec<_>, Failure>>()?;
+        let grid = HemisphereGrid::build(&triangles, settings).map_err(|e| Failure::from_core(&e, "building"))?;
+        out.write(LodestarGuide { structure: GuideStructure::Hemisphere(grid) }.into_raw());
+        Ok(())
+    })
+}
+
+/// Frees a guide. Needs the guide to itself: no other call on it may be in flight, and
+/// the handle must not be used afterwards. NULL is `LODESTAR_STATUS_NULL_ARGUMENT`.
+///
+/// # Safety
+/// `guide` must be NULL or a handle from create/load not yet released.
+#[no_mangle]
+pub unsafe extern "C" fn lodestar_guide_release(guide: *mut LodestarGuide) -> LodestarStatus {
+    guarded("lodestar_guide_release", || {
+        // SAFETY: the caller's contract; checked non-NULL and aligned first.
+        unsafe { borrow(guide.cast_const(), "guide") }?;
+        drop(unsafe { Box::from_raw(guide) });
+        Ok(())
+    })
+}
+
+/// Finds the region for a surface point `position` (scene units) whose unit `normal`
+/// faces the side the path arrives from (normalised here; zero length is an error).
+/// `out_region->index` is `LODESTAR_NO_REGION` where no region covers the point: the
+/// caller samples its BSDF alone there. Thread-safe.
+///
+/// # Safety
+/// `guide` must be NULL or a live handle; `out_region` NULL or writable.
+#[no_mangle]
+pub unsafe extern "C" fn lodestar_guide_locate(
+    guide: *const LodestarGuide,
+    position: LodestarVec3,
+    normal: LodestarVec3,
+    out_region: *mut LodestarRegion,
+) -> LodestarStatus {
+    guarded("lodestar_guide_locate", || {
+        // SAFETY (both): the caller's contract.
+        let guide = unsafe { shared(guide) }?;
+        let out = unsafe { Output::new(out_region, "out_region") }?;
+        let position = point(position, "position")?;
+        let normal = direction(normal, "normal")?;
+        let index = match &guide.structure {
+            GuideStructure::Hemisphere(grid) => grid.locate(position, normal).map_or(LODESTAR_NO_REGION, |p| p.0),
+        };
+        out.write(LodestarRegion { index });
+        Ok(())
+    })
+}
+
+/// Draws a direction ∝ Q in `region` from two uniform numbers in [0, 1]; the pdf is per
+/// steradian and positive. Thread-safe.
+///
+/// # Safety
+/// `guide` must be NULL or a live handle; `out_sample` NULL or writable.
+#[no_mangle]
+pub unsafe extern "C" fn lodestar_guide_sample(
+    guide: *const LodestarGuide,
+    region: LodestarRegion,
+    u0: f32,
+    u1: f32,
+    out_sample: *mut LodestarDirectionSample,
+) -> LodestarStatus {
+    guarded("lodestar_guide_sample", || {
+        // SAFETY (both): the caller's contract.
+        let guide = unsafe { shared(guide) }?;
+        let out = unsafe { Output::new(out_sample, "out_sample") }?;
+        let u = Vec2::new(uniform(u0, "u0")?, uniform(u1, "u1")?);
+        let sample = match &guide.structure {
+            GuideStructure::Hemisphere(grid) => grid.sample(LodestarGuide::probe(grid, region)?, u),
+        };
+        out.write(LodestarDirectionSample { direction: sample.direction.into(), pdf: sample.pdf });
+        Ok(())
+    })
+}
+
+/// The density (per steradian) with which `region` samples `direction` (world space,
+/// normalised here); 0 below the region's horizon. Thread-safe.
+///
+/// # Safety
+/// `guide` must be NULL or a live handle; `out_pdf` NULL or writable.
+#[no_mangle]
+pub unsafe extern "C" fn lodestar_guide_pdf(
+    guide: *const LodestarGuide,
+    region: LodestarRegion,
+    direction: LodestarVec3,
+    out_pdf: *mut f32,
+) -> LodestarStatus {
+    guarded("lodestar_guide_pdf", || {
+        // SAFETY (both): the caller's contract.
+        let guide = unsafe { shared(guide) }?;
+        let out = unsafe { Output::new(out_pdf, "out_pdf") }?;
+        let wi = self::direction(direction, "direction")?;
+        let pdf = match &guide.structure {
+            GuideStructure::Hemisphere(grid) => grid.pdf(LodestarGuide::probe(grid, region)?, wi),
+        };
+        out.write(pdf);
+        Ok(())
+    })
+}
+
+/// Blends `target` (radiance arriving from `direction`: `Le + estimate_integral` at the
+/// next vertex) into Q with the guide's update rule. A NaN or infinite target returns
+/// `LODESTAR_STATUS_NON_FINITE_ARGUMENT`, a negative one
+/// `LODESTAR_STATUS_INVALID_ARGUMENT`; neither is stored, both are counted in the stats.
+/// Thread-safe (lock-free).
+///
+/// # Safety
+/// `guide` must be NULL or a live handle; `out_outcome` NULL or writable.
+#[no_mangle]
+pub unsafe extern "C" fn lodestar_guide_update(
+    guide: *const LodestarGuide,
+    region: LodestarRegion,
+    direction: LodestarVec3,
+    target: f32,
+    out_outcome: *mut LodestarUpdateOutcome,
+) -> LodestarStatus {
+    guarded("lodestar_guide_update", || {
+        // SAFETY (both): the caller's contract.
+        let guide = unsafe { shared(guide) }?;
+        let out = unsafe { Output::new(out_outcome, "out_outcome") }?;
+        let wi = self::direction(direction, "direction")?;
+        let outcome = match &guide.structure {
+            GuideStructure::Hemisphere(grid) => grid.update(LodestarGuide::probe(grid, region)?, wi, target),
+        };
+        match outcome {
+            UpdateOutcome::Accepted => out.write(LodestarUpdateOutcome::Accepted),
+            UpdateOutcome::OutsideDomain => out.write(LodestarUpdateOutcome::OutsideDomain),
+            UpdateOutcome::RejectedNonFinite => {
+                return Err(Failure::new(
+                    LodestarStatus::NonFiniteArgument,
+                    format!("`target` is {target}: rejected and counted, not stored"),
+                ))
+            }
+            UpdateOutcome::RejectedNegative => {
+                return Err(Failure::new(
+                    LodestarStatus::InvalidArgument,
+                    format!("`target` = {target} is negative: rejected and counted, not stored"),
+                ))
+            }
+        }
+        Ok(())
+    })
+}
+
+/// A renderer's cosine-weighted BSDF `fs(wi, wo)·|cos θi|` (per steradian, ≥ 0, finite)
+/// for unit world directions `wi` (towards the light) and `wo` (towards the viewer).
+/// Called synchronously on the calling thread; must not throw or unwind.
+pub type LodestarEvalCos =
+    Option<unsafe extern "C" fn(user_data: *mut c_void, wi: LodestarVec3, wo: LodestarVec3) -> f32>;
+
+/// A C callback seen as a [`ScatteringFunction`]; remembers the first bad value it returned.
+struct CallbackScattering {
+    eval_cos: unsafe extern "C" fn(*mut c_void, LodestarVec3, LodestarVec3) -> f32,
+    user_data: *mut c_void,
+    first_bad_value: Cell<Option<f32>>,
+}
+
+impl ScatteringFunction for CallbackScattering {
+    fn eval_cos(&self, wi: Vec3, wo: Vec3) -> f32 {
+        // SAFETY: the caller of lodestar_guide_estimate_integral vouches for the callback.
+        let value = unsafe { (self.eval_cos)(self.user_data, wi.into(), wo.into()) };
+        if value.is_finite() && value >= 0.0 {
+            value
+        } else {
+            if self.first_bad_value.get().is_none() {
+                self.first_bad_value.set(Some(value));
+            }
+            0.0
+        }
+    }
+}
+
+fn estimate<S: ScatteringFunction>(
+    guide: &LodestarGuide,
+    region: LodestarRegion,
+    wo: Vec3,
+    bsdf: &S,
+    u: Vec2,
+) -> Result<f32, Failure> {
+    match &guide.structure {
+        GuideStructure::Hemisphere(grid) => {
+            Ok(grid.estimate_integral(LodestarGuide::probe(grid, region)?, wo, bsdf, u))
+        }
+    }
+}
+
+/// Estimates Eq. (1)'s `∫ Q(region, ωi) fs(ωi, wo) cos θi dωi` (radiance) with the
+/// guide's integral estimator, calling `eval_cos(user_data, wi, wo)` for the BSDF;
+/// `u0`, `u1` in [0, 1] jitter the stratified estimator. `user_data` is passed through
+/// untouched and may be NULL. A callback value that is NaN, infinite or negative fails
+/// the call. Thread-safe when the callback is.
+///
+/// # Safety
+/// `guide` must be NULL or a live handle; `eval_cos` NULL or a function safe to call
+/// with `user_data`; `out_value` NULL or writable.
+#[no_mangle]
+pub unsafe extern "C" fn lodestar_guide_estimate_integral(
+    guide: *const LodestarGuide,
+    region: LodestarRegion,
+    wo: LodestarVec3,
+    eval_cos: LodestarEvalCos,
+    user_data: *mut c_void,
+    u0: f32,
+    u1: f32,
+    out_value: *mut f32,
+) -> LodestarStatus {
+    guarded("lodestar_guide_estimate_integral", || {
+        // SAFETY (both): the caller's contract.
+        let guide = unsafe { shared(guide) }?;
+        let out = unsafe { Output::new(out_value, "out_value") }?;
+        let eval_cos = eval_cos.ok_or_else(|| Failure::new(LodestarStatus::NullArgument, "`eval_cos` is NULL"))?;
+        let wo = direction(wo, "wo")?;
+        let u = Vec2::new(uniform(u0, "u0")?, uniform(u1, "u1")?);
+        let bsdf = CallbackScattering { eval_cos, user_data, first_bad_value: Cell::new(None) };
+        let value = estimate(guide, region, wo, &bsdf, u)?;
+        if let Some(bad) = bsdf.first_bad_value.get() {
+            let status =
+                if bad.is_finite() { LodestarStatus::InvalidArgument } else { LodestarStatus::NonFiniteArgument };
+            return Err(Failure::new(status, format!("`eval_cos` returned {bad}: it must be finite and ≥ 0")));
+        }
+        out.write(value);
+        Ok(())
+    })
+}
+
+/// `lodestar_guide_estimate_integral` for a Lambertian surface of `albedo` in [0, 1]
+/// with unit shading `normal` (normalised here): the guide uses exact per-patch cosine
+/// integrals, and with the default estimator the call costs one load. Thread-safe.
+///
+/// # Safety
+/// `guide` must be NULL or a live handle; `out_value` NULL or writable.
+#[no_mangle]
+pub unsafe extern "C" fn lodestar_guide_estimate_integral_lambertian(
+    guide: *const LodestarGuide,
+    region: LodestarRegion,
+    normal: LodestarVec3,
+    albedo: f32,
+    u0: f32,
+    u1: f32,
+    out_value: *mut f32,
+) -> LodestarStatus {
+    guarded("lodestar_guide_estimate_integral_lambertian", || {
+        // SAFETY (both): the caller's contract.
+        let guide = unsafe { shared(guide) }?;
+        let out = unsafe { Output::new(out_value, "out_value") }?;
+        let normal = direction(normal, "normal")?;
+        let albedo = finite(albedo, "albedo")?;
+        if !(0.0..=1.0).contains(&albedo) {
+            return Err(Failure::new(
+                LodestarStatus::InvalidArgument,
+                format!("`albedo` = {albedo} is outside [0, 1]"),
+            ));
+        }
+        let u = Vec2::new(uniform(u0, "u0")?, uniform(u1, "u1")?);
+        out.write(estimate(guide, region, normal, &Lambertian { normal, albedo }, u)?);
+        Ok(())
+    })
+}
+
+/// Rebuilds every region's sampling distribution from the learned Q and starts the next
+/// learning epoch; call between passes. Needs the guide to itself: no other call on it
+/// may be in flight.
+///
+/// # Safety
+/// `guide` must be NULL or a live handle no other thread is using.
+#[no_mangle]
+pub unsafe extern "C" fn lodestar_guide_rebuild(guide: *mut LodestarGuide) -> LodestarStatus {
+    guarded("lodestar_guide_rebuild", || {
+        // SAFETY: the caller's contract; checked non-NULL and aligned first.
+        unsafe { borrow(guide.cast_const(), "guide") }?;
+        let guide = unsafe { &mut *guide };
+        match &mut guide.structure {
+            GuideStructure::Hemisphere(grid) => grid.rebuild_sampling(),
+        }
+        Ok(())
+    })
+}
+
+/// Sizes and counters. Thread-safe (a snapshot of counters others may be updating).
+///
+/// # Safety
+/// `guide` must be NULL or a live handle; `out_stats` NULL or writable.
+#[no_mangle]
+pub unsafe extern "C" fn lodestar_guide_stats(
+    guide: *const LodestarGuide,
+    out_stats: *mut LodestarGuideStats,
+) -> LodestarStatus {
+    guarded("lodestar_guide_stats", || {
+        // SAFETY (both): the caller's contract.
+        let guide = unsafe { shared(guide) }?;
+        let out = unsafe { Output::new(out_stats, "out_stats") }?;
+        out.write(guide.stats().into());
+        Ok(())
+    })
+}
+
+/// Checks every stored value (finite, within range, consistent distributions);
+/// `LODESTAR_STATUS_INVALID_STATE` names the first that is not. Thread-safe.
+///
+/// # Safety
+/// `guide` must be NULL or a live handle.
+#[no_mangle]
+pub unsafe extern "C" fn lodestar_guide_validate(guide: *const LodestarGuide) -> LodestarStatus {
+    guarded("lodestar_guide_validate", || {
+        // SAFETY: the caller's contract.
+        let guide = unsafe { shared(guide) }?;
+        let result = match &guide.structure {
+            GuideStructure::Hemisphere(grid) => grid.validate(),
+        };
+        result.map_err(|e| Failure::new(LodestarStatus::InvalidState, e.to_string()))
+    })
+}

@@ -1,0 +1,42 @@
+//! Lodestar's C ABI: `liblodestar` for C and C++ engines.
+//!
+//! Modelled on Open PGL's C API: an opaque `LodestarGuide` handle made by
+//! `lodestar_guide_create` (or `lodestar_guide_load`) and freed by
+//! `lodestar_guide_release`; per path vertex the renderer locates a region once, then
+//! samples, evaluates pdfs and updates with it. Every call returns a `LodestarStatus`;
+//! on failure `lodestar_last_error` says what was wrong and where. NULL pointers,
+//! NaN/∞ inputs, wrong struct sizes, unknown enum values and damaged buffers are errors,
+//! never crashes, and no Rust panic crosses the boundary.
+//!
+//! # Threads
+//!
+//! `locate`, `sample`, `pdf`, `update`, the `estimate_integral` calls, `stats`,
+//! `validate`, `serialized_size` and `save` are lock-free and may run on one guide from
+//! any number of threads at once. `lodestar_guide_rebuild` and
+//! `lodestar_guide_release` need the guide to themselves: no other call on the same
+//! guide may be in flight (call `rebuild` between passes). The error message is kept
+//! per thread.
+#![deny(missing_docs, unsafe_op_in_unsafe_fn)]
+
+mod arguments;
+mod config;
+mod guide;
+mod serialize;
+mod status;
+mod types;
+
+pub use config::{
+    lodestar_guide_config_default, LodestarGuideConfig, LodestarIntegralEstimator, LodestarLearningRate,
+    LodestarMapping, LodestarStructure,
+};
+pub use guide::{
+    lodestar_guide_create, lodestar_guide_estimate_integral, lodestar_guide_estimate_integral_lambertian,
+    lodestar_guide_locate, lodestar_guide_pdf, lodestar_guide_rebuild, lodestar_guide_release, lodestar_guide_sample,
+    lodestar_guide_stats, lodestar_guide_update, lodestar_guide_validate, LodestarEvalCos, LodestarGuide,
+};
+pub use serialize::{lodestar_guide_load, lodestar_guide_save, lodestar_guide_serialized_size};
+pub use status::{lodestar_last_error, lodestar_status_name, LodestarStatus};
+pub use types::{
+    lodestar_version, LodestarDirectionSample, LodestarGuideStats, LodestarRegion, LodestarUpdateOutcome, LodestarVec3,
+    LODESTAR_NO_REGION, LODESTAR_VERSION, LODESTAR_VERSION_MAJOR, LODESTAR_VERSION_MINOR, LODESTAR_VERSION_PATCH,
+};

@@ -1,0 +1,116 @@
+//! The plain C types that cross the boundary, and the library version.
+
+use glam::Vec3;
+use guiding_core::GuideStats;
+
+/// Major version of this library: incompatible ABI changes bump it.
+pub const LODESTAR_VERSION_MAJOR: u32 = 0;
+/// Minor version: compatible additions.
+pub const LODESTAR_VERSION_MINOR: u32 = 1;
+/// Patch version: fixes.
+pub const LODESTAR_VERSION_PATCH: u32 = 0;
+/// `major·10000 + minor·100 + patch` of the header; compare with `lodestar_version`
+/// to catch a header and a library that do not match.
+pub const LODESTAR_VERSION: u32 =
+    LODESTAR_VERSION_MAJOR * 10000 + LODESTAR_VERSION_MINOR * 100 + LODESTAR_VERSION_PATCH;
+
+/// The version of the library linked, `major·10000 + minor·100 + patch`.
+#[no_mangle]
+pub extern "C" fn lodestar_version() -> u32 {
+    LODESTAR_VERSION
+}
+
+/// A point (scene units) or a direction (world space).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct LodestarVec3 {
+    /// x
+    pub x: f32,
+    /// y
+    pub y: f32,
+    /// z
+    pub z: f32,
+}
+
+impl From<LodestarVec3> for Vec3 {
+    fn from(v: LodestarVec3) -> Self {
+        Vec3::new(v.x, v.y, v.z)
+    }
+}
+
+impl From<Vec3> for LodestarVec3 {
+    fn from(v: Vec3) -> Self {
+        Self { x: v.x, y: v.y, z: v.z }
+    }
+}
+
+/// `LodestarRegion.index` when no region covers a point: sample the BSDF alone there.
+pub const LODESTAR_NO_REGION: u32 = u32::MAX;
+
+/// A located region of a guide (a probe of a hemisphere grid), valid for the guide that
+/// returned it until that guide is released.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LodestarRegion {
+    /// The region's index, or `LODESTAR_NO_REGION`.
+    pub index: u32,
+}
+
+/// A sampled direction and its density.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct LodestarDirectionSample {
+    /// Unit direction, world space.
+    pub direction: LodestarVec3,
+    /// Density of `direction`, per steradian; positive.
+    pub pdf: f32,
+}
+
+/// How an accepted update call was taken. (NaN, infinite and negative targets are not
+/// outcomes but errors: the call returns `LODESTAR_STATUS_NON_FINITE_ARGUMENT` or
+/// `LODESTAR_STATUS_INVALID_ARGUMENT`, and the guide counts them in its stats.)
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LodestarUpdateOutcome {
+    /// The target was blended into Q.
+    Accepted = 0,
+    /// The direction lies below the region's horizon: nothing to update.
+    OutsideDomain = 1,
+}
+
+/// Sizes and counters of a guide.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LodestarGuideStats {
+    /// Regions (probes).
+    pub regions: u64,
+    /// Directional entries (patches) per region.
+    pub entries_per_region: u64,
+    /// Bytes held by the guide's tables.
+    pub memory_bytes: u64,
+    /// Updates accepted since creation.
+    pub accepted_updates: u64,
+    /// Entries that received at least one update.
+    pub visited_entries: u64,
+    /// Targets rejected for being NaN or infinite.
+    pub rejected_non_finite: u64,
+    /// Targets rejected for being negative.
+    pub rejected_negative: u64,
+    /// Learning epochs completed (calls to `lodestar_guide_rebuild`).
+    pub epochs: u32,
+}
+
+impl From<GuideStats> for LodestarGuideStats {
+    fn from(s: GuideStats) -> Self {
+        Self {
+            regions: s.regions as u64,
+            entries_per_region: s.entries_per_region as u64,
+            memory_bytes: s.memory_bytes as u64,
+            accepted_updates: s.accepted_updates,
+            visited_entries: s.visited_entries as u64,
+            rejected_non_finite: s.rejected_non_finite,
+            rejected_negative: s.rejected_negative,
+            epochs: s.epochs,
+        }
+    }
+}

@@ -1,0 +1,290 @@
+/* Every error path of Lodestar's C API, called from C: NULL pointers, NaN and infinite
+ * numbers, out-of-range arguments, wrong struct sizes, unknown enum values, stale
+ * regions, small and corrupted buffers. Each check asserts the status code and that
+ * lodestar_last_error() names the culprit; a final part updates one guide from four
+ * threads at once. Prints one line per failed check and exits non-zero on any. */
+#include <math.h>
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "lodestar.h"
+
+static int checks = 0, failures = 0;
+
+/* The status must be `expected` and, on failure, the message must contain `needle`. */
+static void expect(LodestarStatus status, LodestarStatus expected, const char *needle, int line) {
+    ++checks;
+    const char *message = lodestar_last_error();
+    if (status != expected) {
+        printf("line %d: got %s, expected %s (%s)\n", line, lodestar_status_name(status),
+               lodestar_status_name(expected), message);
+        ++failures;
+    } else if (expected == LODESTAR_STATUS_OK ? message[0] != '\0' : strstr(message, needle) == NULL) {
+        printf("line %d: message \"%s\" does not mention \"%s\"\n", line, message, needle);
+        ++failures;
+    }
+}
+#define EXPECT(call, expected, needle) expect((call), (expected), (needle), __LINE__)
+#define EXPECT_OK(call) expect((call), LODESTAR_STATUS_OK, "", __LINE__)
+
+static void truth(int condition, const char *what, int line) {
+    ++checks;
+    if (!condition) {
+        printf("line %d: %s does not hold\n", line, what);
+        ++failures;
+    }
+}
+#define TRUTH(condition) truth((condition), #condition, __LINE__)
+
+/* A unit floor quad facing +y. */
+static const float floor_positions[] = {0, 0, 0, 0, 0, 1, 1, 0, 1, 1, 0, 0};
+static const uint32_t floor_indices[] = {0, 1, 2, 0, 2, 3};
+
+static float lambert_cos(void *user_data, LodestarVec3 wi, LodestarVec3 wo) {
+    (void)wo;
+    const float albedo = *(const float *)user_data;
+    return wi.y > 0 ? albedo / 3.14159265f * wi.y : 0.0f;
+}
+static float returns_nan(void *user_data, LodestarVec3 wi, LodestarVec3 wo) {
+    (void)user_data, (void)wi, (void)wo;
+    return NAN;
+}
+static float returns_negative(void *user_data, LodestarVec3 wi, LodestarVec3 wo) {
+    (void)user_data, (void)wi, (void)wo;
+    return -0.5f;
+}
+
+static void config_errors(void) {
+    const float *p = floor_positions;
+    const uint32_t *ix = floor_indices;
+    LodestarGuideConfig config, bad;
+    LodestarGuide *guide = NULL;
+    EXPECT(lodestar_guide_config_default(NULL), LODESTAR_STATUS_NULL_ARGUMENT, "out_config");
+    EXPECT_OK(lodestar_guide_config_default(&config));
+    TRUTH(config.struct_size == sizeof(LodestarGuideConfig));
+
+    EXPECT(lodestar_guide_create(NULL, p, 4, ix, 2, &guide), LODESTAR_STATUS_NULL_ARGUMENT, "config");
+    EXPECT(lodestar_guide_create(&config, NULL, 4, ix, 2, &guide), LODESTAR_STATUS_NULL_ARGUMENT, "positions");
+    EXPECT(lodestar_guide_create(&config, p, 4, NULL, 2, &guide), LODESTAR_STATUS_NULL_ARGUMENT, "indices");
+    EXPECT(lodestar_guide_create(&config, p, 4, ix, 2, NULL), LODESTAR_STATUS_NULL_ARGUMENT, "out_guide");
+
+    bad = config, bad.struct_size = 12;
+    EXPECT(lodestar_guide_create(&bad, p, 4, ix, 2, &guide), LODESTAR_STATUS_WRONG_STRUCT_SIZE, "struct_size");
+    bad = config, bad.structure = 99;
+    EXPECT(lodestar_guide_create(&bad, p, 4, ix, 2, &guide), LODESTAR_STATUS_UNKNOWN_ENUM_VALUE, "structure");
+    bad = config, bad.mapping = 5;
+    EXPECT(lodestar_guide_create(&bad, p, 4, ix, 2, &guide), LODESTAR_STATUS_UNKNOWN_ENUM_VALUE, "mapping");
+    bad = config, bad.learning_rate = 0xFFFFFFFFu;
+    EXPECT(lodestar_guide_create(&bad, p, 4, ix, 2, &guide), LODESTAR_STATUS_UNKNOWN_ENUM_VALUE, "learning_rate");
+    bad = config, bad.integral_estimator = 3;
+    EXPECT(lodestar_guide_create(&bad, p, 4, ix, 2, &guide), LODESTAR_STATUS_UNKNOWN_ENUM_VALUE,
+           "integral_estimator");
+    bad = config, bad.initial_q = NAN;
+    EXPECT(lodestar_guide_create(&bad, p, 4, ix, 2, &guide), LODESTAR_STATUS_NON_FINITE_ARGUMENT, "initial_q");
+    bad = config, bad.learning_rate = LODESTAR_LEARNING_RATE_EXPONENTIAL, bad.learning_rate_parameter = INFINITY;
+    EXPECT(lodestar_guide_create(&bad, p, 4, ix, 2, &guide), LODESTAR_STATUS_NON_FINITE_ARGUMENT,
+           "learning_rate_parameter");
+    bad = config, bad.learning_rate = LODESTAR_LEARNING_RATE_EXPONENTIAL, bad.learning_rate_parameter = 1.5f;
+    EXPECT(lodestar_guide_create(&bad, p, 4, ix, 2, &guide), LODESTAR_STATUS_INVALID_CONFIG, "alpha");
+    bad = config, bad.budget_bytes = 100;
+    EXPECT(lodestar_guide_create(&bad, p, 4, ix, 2, &guide), LODESTAR_STATUS_INVALID_CONFIG, "budget");
+    bad = config, bad.resolution[0] = 1024, bad.resolution[1] = 1024;
+    EXPECT(lodestar_guide_create(&bad, p, 4, ix, 2, &guide), LODESTAR_STATUS_INVALID_CONFIG, "resolution");
+    bad = config, bad.two_sided = 7;
+    EXPECT(lodestar_guide_create(&bad, p, 4, ix, 2, &guide), LODESTAR_STATUS_INVALID_ARGUMENT, "two_sided");
+
+    const uint32_t past_end[] = {0, 1, 9};
+    EXPECT(lodestar_guide_create(&config, p, 4, past_end, 1, &guide), LODESTAR_STATUS_INVALID_ARGUMENT, "indices[2]");
+    float nan_vertex[12];
+    memcpy(nan_vertex, floor_positions, sizeof nan_vertex);
+    nan_vertex[4] = NAN;
+    EXPECT(lodestar_guide_create(&config, nan_vertex, 4, ix, 2, &guide), LODESTAR_STATUS_NON_FINITE_ARGUMENT,
+           "vertex 1");
+    const float collapsed[] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
+    const uint32_t one[] = {0, 1, 2};
+    EXPECT(lodestar_guide_create(&config, collapsed, 3, one, 1, &guide), LODESTAR_STATUS_INVALID_GEOMETRY, "area");
+    EXPECT(lodestar_guide_create(&config, p, 4, ix, 0, &guide), LODESTAR_STATUS_INVALID_GEOMETRY, "area");
+    TRUTH(guide == NULL); /* nothing was written by any failed call */
+}
+
+static void per_vertex_errors(LodestarGuide *guide) {
+    LodestarVec3 up = {0, 1, 0}, centre = {0.5f, 0, 0.5f}, zero = {0, 0, 0}, nan3 = {NAN, 0, 0};
+    LodestarVec3 inf3 = {0, INFINITY, 0};
+    LodestarRegion region, none = {LODESTAR_NO_REGION}, past = {1u << 30};
+    LodestarDirectionSample sample;
+    LodestarUpdateOutcome outcome;
+    float value = 0, albedo = 0.5f;
+
+    EXPECT(lodestar_guide_locate(NULL, centre, up, &region), LODESTAR_STATUS_NULL_ARGUMENT, "guide");
+    EXPECT(lodestar_guide_locate(guide, centre, up, NULL), LODESTAR_STATUS_NULL_ARGUMENT, "out_region");
+    EXPECT(lodestar_guide_locate(guide, nan3, up, &region), LODESTAR_STATUS_NON_FINITE_ARGUMENT, "position");
+    EXPECT(lodestar_guide_locate(guide, centre, inf3, &region), LODESTAR_STATUS_NON_FINITE_ARGUMENT, "normal");
+    EXPECT(lodestar_guide_locate(guide, centre, zero, &region), LODESTAR_STATUS_INVALID_ARGUMENT, "normal");
+    LodestarVec3 far_away = {1e6f, 0, 0}, down = {0, -1, 0};
+    EXPECT_OK(lodestar_guide_locate(guide, far_away, up, &region));
+    TRUTH(region.index == LODESTAR_NO_REGION);
+    EXPECT_OK(lodestar_guide_locate(guide, centre, down, &region));
+    TRUTH(region.index == LODESTAR_NO_REGION); /* one-sided: nothing faces down */
+    EXPECT_OK(lodestar_guide_locate(guide, centre, up, &region));
+    TRUTH(region.index != LODESTAR_NO_REGION);
+
+    EXPECT(lodestar_guide_sample(guide, region, NAN, 0.5f, &sample), LODESTAR_STATUS_NON_FINITE_ARGUMENT, "u0");
+    EXPECT(lodestar_guide_sample(guide, region, 0.5f, 1.5f, &sample), LODESTAR_STATUS_INVALID_ARGUMENT, "u1");
+    EXPECT(lodestar_guide_sample(guide, none, 0.5f, 0.5f, &sample), LODESTAR_STATUS_INVALID_REGION,
+           "LODESTAR_NO_REGION");
+    EXPECT(lodestar_guide_sample(guide, past, 0.5f, 0.5f, &sample), LODESTAR_STATUS_INVALID_REGION, "past");
+    EXPECT(lodestar_guide_sample(guide, region, 0.5f, 0.5f, NULL), LODESTAR_STATUS_NULL_ARGUMENT, "out_sample");
+    EXPECT_OK(lodestar_guide_sample(guide, region, 0.5f, 0.5f, &sample));
+    TRUTH(sample.pdf > 0 && sample.direction.y > 0);
+
+    EXPECT(lodestar_guide_pdf(guide, region, nan3, &value), LODESTAR_STATUS_NON_FINITE_ARGUMENT, "direction");
+    EXPECT(lodestar_guide_pdf(guide, region, zero, &value), LODESTAR_STATUS_INVALID_ARGUMENT, "direction");
+    EXPECT(lodestar_guide_pdf(guide, past, up, &value), LODESTAR_STATUS_INVALID_REGION, "region");
+    EXPECT_OK(lodestar_guide_pdf(guide, region, sample.direction, &value));
+    TRUTH(value == sample.pdf);
+
+    LodestarGuideStats before, after;
+    EXPECT_OK(lodestar_guide_stats(guide, &before));
+    EXPECT(lodestar_guide_update(guide, region, up, NAN, &outcome), LODESTAR_STATUS_NON_FINITE_ARGUMENT, "target");
+    EXPECT(lodestar_guide_update(guide, region, up, INFINITY, &outcome), LODESTAR_STATUS_NON_FINITE_ARGUMENT,
+           "target");
+    EXPECT(lodestar_guide_update(guide, region, up, -1.0f, &outcome), LODESTAR_STATUS_INVALID_ARGUMENT, "negative");
+    EXPECT(lodestar_guide_update(guide, region, nan3, 1.0f, &outcome), LODESTAR_STATUS_NON_FINITE_ARGUMENT,
+           "direction");
+    EXPECT(lodestar_guide_update(guide, none, up, 1.0f, &outcome), LODESTAR_STATUS_INVALID_REGION, "region");
+    EXPECT(lodestar_guide_update(guide, region, up, 1.0f, NULL), LODESTAR_STATUS_NULL_ARGUMENT, "out_outcome");
+    EXPECT_OK(lodestar_guide_stats(guide, &after));
+    TRUTH(after.rejected_non_finite == before.rejected_non_finite + 2);
+    TRUTH(after.rejected_negative == before.rejected_negative + 1);
+    TRUTH(after.accepted_updates == before.accepted_updates); /* nothing stored */
+    EXPECT_OK(lodestar_guide_update(guide, region, up, 3.0f, &outcome));
+    TRUTH(outcome == LODESTAR_UPDATE_OUTCOME_ACCEPTED);
+    EXPECT_OK(lodestar_guide_update(guide, region, down, 3.0f, &outcome));
+    TRUTH(outcome == LODESTAR_UPDATE_OUTCOME_OUTSIDE_DOMAIN);
+
+    EXPECT(lodestar_guide_estimate_integral(guide, region, up, NULL, &albedo, 0.5f, 0.5f, &value),
+           LODESTAR_STATUS_NULL_ARGUMENT, "eval_cos");
+    EXPECT(lodestar_guide_estimate_integral(guide, region, up, returns_nan, NULL, 0.5f, 0.5f, &value),
+           LODESTAR_STATUS_NON_FINITE_ARGUMENT, "`eval_cos` returned NaN");
+    EXPECT(lodestar_guide_estimate_integral(guide, region, up, returns_negative, NULL, 0.5f, 0.5f, &value),
+           LODESTAR_STATUS_INVALID_ARGUMENT, "`eval_cos` returned -0.5");
+    EXPECT(lodestar_guide_estimate_integral(guide, region, nan3, lambert_cos, &albedo, 0.5f, 0.5f, &value),
+           LODESTAR_STATUS_NON_FINITE_ARGUMENT, "wo");
+    EXPECT(lodestar_guide_estimate_integral_lambertian(guide, region, up, NAN, 0.5f, 0.5f, &value),
+           LODESTAR_STATUS_NON_FINITE_ARGUMENT, "albedo");
+    EXPECT(lodestar_guide_estimate_integral_lambertian(guide, region, up, 2.0f, 0.5f, 0.5f, &value),
+           LODESTAR_STATUS_INVALID_ARGUMENT, "albedo");
+    EXPECT(lodestar_guide_estimate_integral_lambertian(guide, region, zero, 0.5f, 0.5f, 0.5f, &value),
+           LODESTAR_STATUS_INVALID_ARGUMENT, "normal");
+    /* The callback and the Lambertian fast path estimate the same integral. */
+    float through_callback = 0, exact = 0;
+    EXPECT_OK(lodestar_guide_estimate_integral(guide, region, up, lambert_cos, &albedo, 0.5f, 0.5f, &through_callback));
+    EXPECT_OK(lodestar_guide_estimate_integral_lambertian(guide, region, up, albedo, 0.5f, 0.5f, &exact));
+    TRUTH(exact > 0 && fabsf(through_callback - exact) < 0.05f * exact);
+
+    EXPECT(lodestar_guide_stats(guide, NULL), LODESTAR_STATUS_NULL_ARGUMENT, "out_stats");
+    EXPECT(lodestar_guide_stats(NULL, &after), LODESTAR_STATUS_NULL_ARGUMENT, "guide");
+    EXPECT(lodestar_guide_validate(NULL), LODESTAR_STATUS_NULL_ARGUMENT, "guide");
+    EXPECT(lodestar_guide_rebuild(NULL), LODESTAR_STATUS_NULL_ARGUMENT, "guide");
+    EXPECT(lodestar_guide_release(NULL), LODESTAR_STATUS_NULL_ARGUMENT, "guide");
+    EXPECT_OK(lodestar_guide_rebuild(guide));
+    EXPECT_OK(lodestar_guide_validate(guide));
+}
+
+static void buffer_errors(LodestarGuide *guide) {
+    size_t size = 0, written = 0;
+    EXPECT(lodestar_guide_serialized_size(guide, NULL), LODESTAR_STATUS_NULL_ARGUMENT, "out_size");
+    EXPECT_OK(lodestar_guide_serialized_size(guide, &size));
+    uint8_t *bytes = malloc(size);
+    EXPECT(lodestar_guide_save(guide, NULL, size, &written), LODESTAR_STATUS_NULL_ARGUMENT, "buffer");
+    EXPECT(lodestar_guide_save(guide, bytes, size - 1, &written), LODESTAR_STATUS_BUFFER_TOO_SMALL, "capacity");
+    TRUTH(written == size); /* the size needed */
+    written = 0;
+    EXPECT_OK(lodestar_guide_save(guide, bytes, size, &written));
+    TRUTH(written == size);
+
+    LodestarGuide *loaded = NULL;
+    EXPECT(lodestar_guide_load(NULL, size, &loaded), LODESTAR_STATUS_NULL_ARGUMENT, "bytes");
+    EXPECT(lodestar_guide_load(bytes, size, NULL), LODESTAR_STATUS_NULL_ARGUMENT, "out_guide");
+    EXPECT(lodestar_guide_load(bytes, 0, &loaded), LODESTAR_STATUS_DECODE_FAILED, "magic");
+    EXPECT(lodestar_guide_load(bytes, size / 2, &loaded), LODESTAR_STATUS_DECODE_FAILED, "damaged");
+    bytes[size / 2] ^= 0x40; /* one flipped bit inside the tables */
+    EXPECT(lodestar_guide_load(bytes, size, &loaded), LODESTAR_STATUS_DECODE_FAILED, "checksum");
+    bytes[size / 2] ^= 0x40;
+    bytes[0] = 'X';
+    EXPECT(lodestar_guide_load(bytes, size, &loaded), LODESTAR_STATUS_DECODE_FAILED, "magic");
+    bytes[0] = 'L';
+    uint8_t *longer = calloc(size + 3, 1);
+    memcpy(longer, bytes, size);
+    EXPECT(lodestar_guide_load(longer, size + 3, &loaded), LODESTAR_STATUS_DECODE_FAILED, "");
+    free(longer);
+    TRUTH(loaded == NULL);
+
+    EXPECT_OK(lodestar_guide_load(bytes, size, &loaded));
+    LodestarGuideStats original, copy;
+    EXPECT_OK(lodestar_guide_stats(guide, &original));
+    EXPECT_OK(lodestar_guide_stats(loaded, &copy));
+    TRUTH(original.regions == copy.regions && original.entries_per_region == copy.entries_per_region);
+    TRUTH(original.accepted_updates == copy.accepted_updates && original.visited_entries == copy.visited_entries);
+    TRUTH(original.rejected_non_finite == copy.rejected_non_finite && original.epochs == copy.epochs);
+    EXPECT_OK(lodestar_guide_release(loaded));
+    free(bytes);
+}
+
+/* Four threads update one region at once: no update is lost. */
+typedef struct {
+    LodestarGuide *guide;
+    LodestarRegion region;
+    int failed;
+} Worker;
+
+static void *update_many(void *argument) {
+    Worker *worker = argument;
+    LodestarVec3 direction = {0.3f, 0.9f, 0.1f};
+    LodestarUpdateOutcome outcome;
+    for (int i = 0; i < 10000; ++i)
+        if (lodestar_guide_update(worker->guide, worker->region, direction, (float)(i % 7), &outcome) !=
+            LODESTAR_STATUS_OK)
+            worker->failed = 1;
+    return NULL;
+}
+
+static void concurrent_updates(LodestarGuide *guide) {
+    LodestarVec3 up = {0, 1, 0}, centre = {0.5f, 0, 0.5f};
+    LodestarRegion region;
+    LodestarGuideStats before, after;
+    EXPECT_OK(lodestar_guide_locate(guide, centre, up, &region));
+    EXPECT_OK(lodestar_guide_stats(guide, &before));
+    pthread_t threads[4];
+    Worker workers[4];
+    for (int t = 0; t < 4; ++t) {
+        workers[t] = (Worker){guide, region, 0};
+        pthread_create(&threads[t], NULL, update_many, &workers[t]);
+    }
+    for (int t = 0; t < 4; ++t) {
+        pthread_join(threads[t], NULL);
+        TRUTH(!workers[t].failed);
+    }
+    EXPECT_OK(lodestar_guide_stats(guide, &after));
+    TRUTH(after.accepted_updates == before.accepted_updates + 40000);
+    EXPECT_OK(lodestar_guide_rebuild(guide));
+    EXPECT_OK(lodestar_guide_validate(guide));
+}
+
+int main(void) {
+    TRUTH(lodestar_version() == LODESTAR_VERSION);
+    config_errors();
+    LodestarGuideConfig config;
+    LodestarGuide *guide = NULL;
+    EXPECT_OK(lodestar_guide_config_default(&config));
+    config.region_count = 16;
+    EXPECT_OK(lodestar_guide_create(&config, floor_positions, 4, floor_indices, 2, &guide));
+    per_vertex_errors(guide);
+    buffer_errors(guide);
+    concurrent_updates(guide);
+    EXPECT_OK(lodestar_guide_release(guide));
+    printf("api_errors: %d of %d checks passed\n", checks - failures, checks);
+    return failures == 0 ? 0 : 1;
+}
