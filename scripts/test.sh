@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The whole test suite, as CI runs it: set-up, formatting, lints, docs, the no_std core
-# build and its dependency list, then every test of the workspace. Prints each stage's time.
+# build and its dependency list, every test of the workspace (Rust, C and C++, valgrind),
+# then a 30-second smoke run of each fuzz target. Prints each stage's time.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 . scripts/setup.sh
@@ -24,8 +25,10 @@ core_dependencies_are_glam_and_libm() {
 
 total=$SECONDS
 stage "format" cargo fmt --all -- --check
+stage "format (fuzz)" cargo fmt --manifest-path fuzz/Cargo.toml -- --check
 stage "clippy" cargo clippy --workspace --all-targets -- -D warnings
 stage "docs" env RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps
 stage "no_std core" core_dependencies_are_glam_and_libm
 stage "tests" cargo test --workspace
+stage "fuzz smoke" ./scripts/fuzz.sh "${LODESTAR_FUZZ_SECONDS:-30}"
 echo "==> all stages passed in $((SECONDS - total)) s"

@@ -251,7 +251,7 @@ fn check_damaged_buffer<G: TableAccess>(
         }
     }
     if reseal && damaged.len() >= 8 {
-        support::reseal(&mut damaged);
+        guiding_core::reseal_checksum(&mut damaged);
     }
     if let Ok(guide) = G::from_bytes(&damaged) {
         prop_assert!(guide.validate().is_ok());

@@ -15,6 +15,16 @@ pub(crate) fn fnv1a_64(bytes: &[u8]) -> u64 {
     hash
 }
 
+/// Recomputes the trailing 8-byte checksum of a serialized guide after its other bytes
+/// were edited on purpose, so tests and fuzzers can reach the field checks behind the
+/// checksum. Buffers shorter than 8 bytes are left alone.
+pub fn reseal_checksum(bytes: &mut [u8]) {
+    if let Some(body) = bytes.len().checked_sub(8) {
+        let checksum = fnv1a_64(&bytes[..body]);
+        bytes[body..].copy_from_slice(&checksum.to_le_bytes());
+    }
+}
+
 /// Appends fields to a byte vector.
 pub(crate) struct ByteWriter {
     bytes: Vec<u8>,

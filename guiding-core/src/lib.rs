@@ -24,6 +24,7 @@ pub mod validation;
 #[cfg(feature = "hemisphere")]
 pub mod hemisphere;
 
+pub use bytes::reseal_checksum;
 pub use distribution::{
     DirectionSample, DirectionalDistribution, UniformHemisphere, UniformSphere, MIN_SAMPLED_COS_THETA,
 };

@@ -133,12 +133,3 @@ impl<D: DirectionalDistribution> DirectionalDistribution for RotatedPdf<D> {
         self.inner.pdf(self.rotated(direction))
     }
 }
-
-/// FNV-1a 64 over `bytes`, as the guide format's trailing checksum; lets a test alter a
-/// buffer's contents and still reach the field checks behind the checksum.
-pub fn reseal(bytes: &mut [u8]) {
-    let body = bytes.len() - 8;
-    let hash =
-        bytes[..body].iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| (h ^ b as u64).wrapping_mul(0x100_0000_01b3));
-    bytes[body..].copy_from_slice(&hash.to_le_bytes());
-}

@@ -18,11 +18,12 @@ const MAX_CELL_COORDINATE: i32 = 1 << 20;
 const CELL_SIZE_IN_SPACINGS: f32 = 1.5;
 
 /// ⌊x⌋ as an integer without a software `floor` (this crate has no std): `as` truncates
-/// towards zero and saturates, maps NaN to 0; one step down fixes negative non-integers.
+/// towards zero and saturates, maps NaN to 0; one step down fixes negative non-integers
+/// (saturating, for values below i32::MIN; found by the capi_calls fuzz target).
 fn floor_to_i32(x: f32) -> i32 {
     let truncated = x as i32;
     if (truncated as f32) > x {
-        truncated - 1
+        truncated.saturating_sub(1)
     } else {
         truncated
     }
@@ -194,6 +195,25 @@ impl ProbeLookup {
 mod tests {
     use super::*;
     use crate::low_discrepancy::Pcg32;
+
+    #[test]
+    fn floor_saturates_at_the_extremes() {
+        assert_eq!(floor_to_i32(-2.5), -3);
+        assert_eq!(floor_to_i32(2.5), 2);
+        assert_eq!(floor_to_i32(-1e30), i32::MIN);
+        assert_eq!(floor_to_i32(f32::NEG_INFINITY), i32::MIN);
+        assert_eq!(floor_to_i32(1e30), i32::MAX);
+        assert_eq!(floor_to_i32(f32::NAN), 0);
+    }
+
+    #[test]
+    fn queries_far_outside_the_grid_find_nothing_and_do_not_overflow() {
+        let positions = [Vec3::ZERO, Vec3::X];
+        let (lookup, _) = ProbeLookup::build(&positions, 0.5, 2);
+        for query in [Vec3::splat(-1e30), Vec3::splat(1e30), Vec3::new(-3e38, 0.0, 3e38)] {
+            assert_eq!(lookup.nearest(query, &positions, |_| true), None);
+        }
+    }
 
     fn random_points(rng: &mut Pcg32, count: usize, scale: f32, offset: Vec3) -> Vec<Vec3> {
         (0..count).map(|_| offset + Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32() * 0.1) * scale).collect()

@@ -217,7 +217,7 @@ pub(crate) fn decode(bytes: &[u8]) -> Result<HemisphereGrid, Error> {
         return Err(invalid("positions", i, "finite"));
     }
     let normals = read_vec3s(&mut r, probes)?;
-    if let Some(i) = normals.iter().position(|n| !(n.is_finite() && (n.length() - 1.0).abs() <= 1e-3)) {
+    if let Some(i) = normals.iter().position(|n| !(n.is_finite() && (n.length() - 1.0).abs() <= 1e-5)) {
         return Err(invalid("normals", i, "finite and unit length"));
     }
     let probe_visits = read_u32s(&mut r, probes)?;
@@ -263,12 +263,6 @@ mod tests {
         HemisphereGrid::build(&quad, settings).unwrap()
     }
 
-    fn reseal(bytes: &mut [u8]) {
-        let body = bytes.len() - 8;
-        let checksum = crate::bytes::fnv1a_64(&bytes[..body]);
-        bytes[body..].copy_from_slice(&checksum.to_le_bytes());
-    }
-
     fn decode_error(bytes: &[u8]) -> Error {
         match decode(bytes) {
             Ok(_) => panic!("the buffer must be rejected"),
@@ -283,11 +277,11 @@ mod tests {
         assert_eq!(decode_error(&[]), Error::Decode(DecodeError::BadMagic));
         let mut version = bytes.clone();
         version[8] = 9;
-        reseal(&mut version);
+        crate::bytes::reseal_checksum(&mut version);
         assert_eq!(decode_error(&version), Error::Decode(DecodeError::UnsupportedVersion { found: 9, supported: 1 }));
         let mut structure = bytes.clone();
         structure[12] = 7;
-        reseal(&mut structure);
+        crate::bytes::reseal_checksum(&mut structure);
         assert_eq!(decode_error(&structure), Error::Decode(DecodeError::WrongStructure { found: 7, expected: 1 }));
         let mut flipped = bytes.clone();
         flipped[40] ^= 4;
@@ -299,11 +293,11 @@ mod tests {
         let bytes = small_grid().to_bytes();
         let mut short = bytes[..bytes.len() - 20].to_vec();
         short.extend_from_slice(&[0; 8]);
-        reseal(&mut short);
+        crate::bytes::reseal_checksum(&mut short);
         assert!(matches!(decode_error(&short), Error::Decode(DecodeError::Truncated { .. })));
         let mut long = bytes[..bytes.len() - 8].to_vec();
         long.extend_from_slice(&[0; 4 + 8]);
-        reseal(&mut long);
+        crate::bytes::reseal_checksum(&mut long);
         assert!(matches!(decode_error(&long), Error::Decode(DecodeError::TrailingBytes { count: 4 })));
         for cut in 0..bytes.len() {
             assert!(decode(&bytes[..cut]).is_err());
@@ -329,7 +323,7 @@ mod tests {
         for (offset, value, field) in cases {
             let mut damaged = bytes.clone();
             damaged[offset..offset + 4].copy_from_slice(&value);
-            reseal(&mut damaged);
+            crate::bytes::reseal_checksum(&mut damaged);
             match decode_error(&damaged) {
                 Error::Decode(DecodeError::InvalidField { field: named, .. }) => assert_eq!(named, field),
                 other => panic!("{field}: {other:?}"),
@@ -337,12 +331,12 @@ mod tests {
         }
         let mut mapping = bytes.clone();
         mapping[16] = 5;
-        reseal(&mut mapping);
+        crate::bytes::reseal_checksum(&mut mapping);
         assert!(matches!(decode_error(&mapping), Error::Decode(DecodeError::InvalidField { field: "mapping", .. })));
         let mut alpha = bytes;
         alpha[56..60].copy_from_slice(&0u32.to_le_bytes());
         alpha[60..64].copy_from_slice(&7.0f32.to_le_bytes());
-        reseal(&mut alpha);
+        crate::bytes::reseal_checksum(&mut alpha);
         assert!(matches!(decode_error(&alpha), Error::InvalidSetting { name: "learning_rate.alpha", .. }));
     }
 }

@@ -1,7 +1,7 @@
 //! Triangle meshes from Wavefront OBJ (tobj) and PLY (ply-rs-bw) files.
 
 use std::fs::File;
-use std::io::BufReader;
+use std::io::{BufRead, BufReader};
 use std::path::Path;
 
 use glam::Vec3;
@@ -23,25 +23,46 @@ pub struct MeshData {
 pub fn load_mesh(path: &Path, scene_file: &Path, location: &str) -> Result<MeshData, SceneError> {
     let extension = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     let fail = |message: String| SceneError::new(scene_file, location, format!("{}: {message}", path.display()));
-    let mesh = match extension.as_deref() {
-        Some("obj") => load_obj(path).map_err(fail)?,
-        Some("ply") => load_ply(path).map_err(fail)?,
+    let format = match extension.as_deref() {
+        Some("obj") => MeshFormat::Obj,
+        Some("ply") => MeshFormat::Ply,
         _ => return Err(fail("unsupported mesh format (expected .obj or .ply)".into())),
     };
+    let file = File::open(path).map_err(|e| fail(format!("cannot open: {e}")))?;
+    parse_mesh(format, &mut BufReader::new(file)).map_err(fail)
+}
+
+/// A mesh file format.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MeshFormat {
+    /// Wavefront OBJ (polygons are triangulated; MTL references are ignored).
+    Obj,
+    /// Stanford PLY, ASCII or binary (`vertex` x y z, `face` vertex_indices).
+    Ply,
+}
+
+/// Reads a mesh from `reader` and checks it: every position finite, every index within
+/// the vertices. Errors say what is wrong (without the file's name).
+pub fn parse_mesh(format: MeshFormat, reader: &mut impl BufRead) -> Result<MeshData, String> {
+    let mesh = match format {
+        MeshFormat::Obj => parse_obj(reader)?,
+        MeshFormat::Ply => parse_ply(reader)?,
+    };
     if let Some(i) = mesh.positions.iter().position(|p| !p.is_finite()) {
-        return Err(fail(format!("vertex {i} has a NaN or infinite coordinate")));
+        return Err(format!("vertex {i} has a NaN or infinite coordinate"));
     }
     let count = mesh.positions.len() as u32;
     if let Some(t) = mesh.triangles.iter().position(|t| t.iter().any(|&i| i >= count)) {
-        return Err(fail(format!("face {t} refers to a vertex beyond the {count} vertices")));
+        return Err(format!("face {t} refers to a vertex beyond the {count} vertices"));
     }
     Ok(mesh)
 }
 
-fn load_obj(path: &Path) -> Result<MeshData, String> {
+fn parse_obj(reader: &mut impl BufRead) -> Result<MeshData, String> {
     let options = tobj::LoadOptions { triangulate: true, single_index: false, ..Default::default() };
     // Materials come from the scene file; the OBJ's own MTL references are ignored.
-    let (models, _materials) = tobj::load_obj(path, &options).map_err(|e| format!("cannot read OBJ: {e}"))?;
+    let (models, _materials) = tobj::load_obj_buf(reader, &options, |_| Err(tobj::LoadError::OpenFileFailed))
+        .map_err(|e| format!("cannot read OBJ: {e}"))?;
     let mut positions = Vec::new();
     let mut triangles = Vec::new();
     for model in models {
@@ -79,11 +100,8 @@ fn index_list(property: Option<&Property>) -> Option<Vec<u32>> {
     }
 }
 
-fn load_ply(path: &Path) -> Result<MeshData, String> {
-    let file = File::open(path).map_err(|e| format!("cannot open: {e}"))?;
-    let ply = Parser::<DefaultElement>::new()
-        .read_ply(&mut BufReader::new(file))
-        .map_err(|e| format!("cannot read PLY: {e}"))?;
+fn parse_ply(reader: &mut impl BufRead) -> Result<MeshData, String> {
+    let ply = Parser::<DefaultElement>::new().read_ply(reader).map_err(|e| format!("cannot read PLY: {e}"))?;
     let vertices = ply.payload.get("vertex").ok_or("no `vertex` element")?;
     let mut positions = Vec::with_capacity(vertices.len());
     for (i, v) in vertices.iter().enumerate() {

@@ -19,6 +19,7 @@ pub use description::{
     CameraDescription, EnvironmentDescription, MaterialDescription, SceneDescription, ShapeDescription,
 };
 pub use error::SceneError;
+pub use mesh::{parse_mesh, MeshData, MeshFormat};
 
 /// The largest image side accepted, pixels.
 pub const MAX_IMAGE_SIDE: u32 = 16_384;
@@ -51,7 +52,13 @@ impl Scene {
     /// Reads and checks a scene file. Every error names the file and where in it.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
         let text = std::fs::read_to_string(path).map_err(|e| SceneError::new(path, "", format!("cannot read: {e}")))?;
-        let deserializer = &mut serde_json::Deserializer::from_str(&text);
+        Self::from_json(path, &text)
+    }
+
+    /// Builds a scene from the JSON `text` of the file `path` (named in errors; relative
+    /// file names resolve against its folder).
+    pub fn from_json(path: &Path, text: &str) -> Result<Scene, SceneError> {
+        let deserializer = &mut serde_json::Deserializer::from_str(text);
         let description: SceneDescription = serde_path_to_error::deserialize(deserializer).map_err(|e| {
             let location = match e.path().to_string().as_str() {
                 "." => String::new(),

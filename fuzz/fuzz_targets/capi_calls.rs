@@ -1,0 +1,219 @@
+//! The C ABI with arbitrary arguments: a fuzzed config and mesh, then a fuzzed sequence
+//! of calls with NaN/∞ numbers, stray regions, NULL outputs, odd buffer sizes and edited
+//! saved buffers. No call may panic through (`LODESTAR_STATUS_INTERNAL_ERROR`) or crash,
+//! and what a successful call returns is finite.
+#![no_main]
+
+use std::ffi::c_void;
+use std::mem::MaybeUninit;
+use std::ptr::{null, null_mut};
+
+use libfuzzer_sys::fuzz_target;
+use lodestar::*;
+
+/// Reads numbers off the fuzzer's bytes; zeros once they run out.
+struct Input<'a>(&'a [u8]);
+
+impl Input<'_> {
+    fn bytes<const N: usize>(&mut self) -> [u8; N] {
+        let mut out = [0u8; N];
+        let n = self.0.len().min(N);
+        out[..n].copy_from_slice(&self.0[..n]);
+        self.0 = &self.0[n..];
+        out
+    }
+    fn u8(&mut self) -> u8 {
+        self.bytes::<1>()[0]
+    }
+    fn u32(&mut self) -> u32 {
+        u32::from_le_bytes(self.bytes())
+    }
+    fn f32(&mut self) -> f32 {
+        f32::from_le_bytes(self.bytes())
+    }
+    fn vec3(&mut self) -> LodestarVec3 {
+        LodestarVec3 { x: self.f32(), y: self.f32(), z: self.f32() }
+    }
+}
+
+fn ok(status: LodestarStatus) -> bool {
+    assert_ne!(status, LodestarStatus::InternalError, "a panic reached the C boundary");
+    status == LodestarStatus::Ok
+}
+
+unsafe extern "C" fn eval_cos(user_data: *mut c_void, wi: LodestarVec3, _wo: LodestarVec3) -> f32 {
+    // The fuzzer's value for the BSDF, scaled by the cosine about +y.
+    let scale = unsafe { *(user_data as *const f32) };
+    scale * wi.y.max(0.0)
+}
+
+fn fuzzed_config(input: &mut Input) -> LodestarGuideConfig {
+    let mut config = MaybeUninit::uninit();
+    assert!(ok(unsafe { lodestar_guide_config_default(config.as_mut_ptr()) }));
+    let mut config = unsafe { config.assume_init() };
+    let spoil = input.u32();
+    let mut field = 0;
+    let mut next = || {
+        field += 1;
+        spoil & (1 << field) != 0
+    };
+    if next() {
+        config.struct_size = input.u32()
+    }
+    if next() {
+        config.structure = input.u32()
+    }
+    if next() {
+        config.budget_bytes = input.u32() as u64
+    }
+    if next() {
+        config.region_count = (input.u8() % 64) as u64
+    }
+    if next() {
+        config.mapping = input.u32()
+    }
+    if next() {
+        config.resolution = [input.u8() as u32, input.u8() as u32]
+    }
+    if next() {
+        config.two_sided = input.u32()
+    }
+    if next() {
+        config.max_normal_angle_deg = input.f32()
+    }
+    if next() {
+        config.max_search_rings = input.u32()
+    }
+    if next() {
+        config.initial_q = input.f32()
+    }
+    if next() {
+        config.q_floor = input.f32()
+    }
+    if next() {
+        config.uniform_mix = input.f32()
+    }
+    if next() {
+        config.sampling_exponent = input.f32()
+    }
+    if next() {
+        config.learning_rate = input.u32()
+    }
+    if next() {
+        config.learning_rate_parameter = input.f32()
+    }
+    if next() {
+        config.integral_estimator = input.u32()
+    }
+    config
+}
+
+fuzz_target!(|data: &[u8]| {
+    let mut input = Input(data);
+    let mut config = fuzzed_config(&mut input);
+    if config.region_count == 0 && config.budget_bytes > 1 << 20 {
+        config.region_count = 64; // keeps each run small; the budget path is covered below 1 MiB
+    }
+    let mut positions = [0.0f32, 0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 0.0, 1.0, 1.0, 0.0, 0.0];
+    let mut indices = [0u32, 1, 2, 0, 2, 3];
+    let geometry = input.u8();
+    if geometry & 1 != 0 {
+        positions.iter_mut().for_each(|p| *p = input.f32());
+    }
+    if geometry & 2 != 0 {
+        indices.iter_mut().for_each(|i| *i = input.u32() % 6);
+    }
+    let config_pointer = if geometry & 4 != 0 { null() } else { &config as *const _ };
+    let mut guide = null_mut();
+    let created =
+        unsafe { lodestar_guide_create(config_pointer, positions.as_ptr(), 4, indices.as_ptr(), 2, &mut guide) };
+    if !ok(created) {
+        assert!(guide.is_null());
+        return;
+    }
+    let mut region = LodestarRegion { index: LODESTAR_NO_REGION };
+    while !input.0.is_empty() {
+        let operation = input.u8();
+        if operation & 0x80 != 0 {
+            region = LodestarRegion { index: input.u32() };
+        }
+        unsafe {
+            match operation % 10 {
+                0 => {
+                    let mut found = LodestarRegion { index: 0 };
+                    if ok(lodestar_guide_locate(guide, input.vec3(), input.vec3(), &mut found)) {
+                        region = found;
+                    }
+                }
+                1 => {
+                    let mut sample = LodestarDirectionSample::default();
+                    if ok(lodestar_guide_sample(guide, region, input.f32(), input.f32(), &mut sample)) {
+                        assert!(sample.pdf.is_finite() && sample.pdf > 0.0, "{sample:?}");
+                    }
+                }
+                2 => {
+                    let mut pdf = -1.0;
+                    if ok(lodestar_guide_pdf(guide, region, input.vec3(), &mut pdf)) {
+                        assert!(pdf.is_finite() && pdf >= 0.0, "{pdf}");
+                    }
+                }
+                3 | 4 => {
+                    let mut outcome = LodestarUpdateOutcome::Accepted;
+                    ok(lodestar_guide_update(guide, region, input.vec3(), input.f32(), &mut outcome));
+                }
+                5 => {
+                    let mut value = -1.0;
+                    let (normal, albedo) = (input.vec3(), input.f32());
+                    let status = lodestar_guide_estimate_integral_lambertian(
+                        guide, region, normal, albedo, 0.5, 0.5, &mut value,
+                    );
+                    if ok(status) {
+                        assert!(value.is_finite() && value >= 0.0, "{value}");
+                    }
+                }
+                6 => {
+                    let mut value = -1.0;
+                    let mut scale = input.f32();
+                    let (wo, u0, u1) = (input.vec3(), input.f32(), input.f32());
+                    let user = &mut scale as *mut f32 as *mut c_void;
+                    if ok(lodestar_guide_estimate_integral(guide, region, wo, Some(eval_cos), user, u0, u1, &mut value))
+                    {
+                        assert!(value.is_finite() && value >= 0.0, "{value}");
+                    }
+                }
+                7 => {
+                    assert!(ok(lodestar_guide_rebuild(guide)));
+                    assert!(ok(lodestar_guide_validate(guide)), "a rebuilt guide validates");
+                }
+                8 => {
+                    let mut stats = LodestarGuideStats::default();
+                    assert!(ok(lodestar_guide_stats(guide, &mut stats)));
+                    assert_eq!(lodestar_guide_stats(guide, null_mut()), LodestarStatus::NullArgument);
+                }
+                _ => {
+                    let mut size = 0usize;
+                    assert!(ok(lodestar_guide_serialized_size(guide, &mut size)));
+                    let capacity = (input.u32() as usize) % (size + 16);
+                    let mut buffer = vec![0u8; capacity.max(1)];
+                    let mut written = 0usize;
+                    if ok(lodestar_guide_save(guide, buffer.as_mut_ptr(), capacity, &mut written)) {
+                        buffer.truncate(written);
+                        let edits = input.u8() % 4;
+                        for _ in 0..edits {
+                            let position = input.u32() as usize % buffer.len();
+                            buffer[position] = input.u8();
+                        }
+                        let mut loaded = null_mut();
+                        if ok(lodestar_guide_load(buffer.as_ptr(), buffer.len(), &mut loaded)) {
+                            assert!(ok(lodestar_guide_validate(loaded)));
+                            assert!(ok(lodestar_guide_release(loaded)));
+                        }
+                    } else {
+                        assert!(written == size, "BUFFER_TOO_SMALL reports the size needed");
+                    }
+                }
+            }
+        }
+    }
+    assert!(ok(unsafe { lodestar_guide_release(guide) }));
+});

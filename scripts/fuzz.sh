@@ -1,0 +1,53 @@
+#!/usr/bin/env bash
+# Runs every cargo-fuzz target for SECONDS each (default 30; CI's smoke run) on stable
+# Rust without a sanitizer, seeding the corpora from the repository's scenes and meshes.
+# Prints each target's executions; fails on the first crash (the input is left in
+# fuzz/artifacts/TARGET). Longer runs: ./scripts/fuzz.sh 600 [TARGET...]
+# AddressSanitizer (about 5× slower): RUSTC_BOOTSTRAP=1 cargo fuzz run TARGET
+set -euo pipefail
+cd "$(dirname "$0")/.."
+. scripts/setup.sh
+
+seconds=${1:-30}
+shift || true
+targets=("$@")
+[ ${#targets[@]} -gt 0 ] || targets=(scene_json mesh guide_bytes update_stream capi_calls)
+
+command -v cargo-fuzz >/dev/null 2>&1 || cargo install cargo-fuzz --locked --version 0.13.2
+
+seed_corpora() {
+    mkdir -p fuzz/corpus/{scene_json,mesh,guide_bytes,update_stream,capi_calls}
+    for scene in scenes/*/scene.json; do
+        cp "$scene" "fuzz/corpus/scene_json/$(basename "$(dirname "$scene")").json"
+    done
+    # Mesh inputs: a selector byte (even: OBJ, odd: PLY), then the file.
+    for mesh in scenes/*/meshes/*.obj; do
+        { printf '\000'; cat "$mesh"; } > "fuzz/corpus/mesh/obj-$(basename "$mesh")"
+    done
+    local header='ply\nformat %s 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n'
+    { printf '\001'; printf "$header" ascii; printf '0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3\n'; } > fuzz/corpus/mesh/quad-ascii.ply
+    {
+        printf '\001'; printf "$header" binary_little_endian
+        printf '\000\000\000\000\000\000\000\000\000\000\000\000'  # (0, 0, 0)
+        printf '\000\000\200\077\000\000\000\000\000\000\000\000'  # (1, 0, 0)
+        printf '\000\000\200\077\000\000\200\077\000\000\000\000'  # (1, 1, 0)
+        printf '\000\000\000\000\000\000\200\077\000\000\000\000'  # (0, 1, 0)
+        printf '\004\000\000\000\000\001\000\000\000\002\000\000\000\003\000\000\000'
+    } > fuzz/corpus/mesh/quad-binary.ply
+}
+
+seed_corpora
+cargo fuzz build --sanitizer none
+for target in "${targets[@]}"; do
+    start=$SECONDS
+    log=$(mktemp)
+    if ! cargo fuzz run --sanitizer none "$target" "fuzz/corpus/$target" -- \
+        -max_total_time="$seconds" -print_final_stats=1 -max_len=65536 >"$log" 2>&1; then
+        tail -40 "$log"
+        echo "fuzz: $target crashed; the input is in fuzz/artifacts/$target" >&2
+        exit 1
+    fi
+    runs=$(grep -o 'stat::number_of_executed_units: [0-9]*' "$log" | awk '{print $2}')
+    echo "fuzz: $target: ${runs:-?} executions in $((SECONDS - start)) s, no crash"
+    rm -f "$log"
+done
