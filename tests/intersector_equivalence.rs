@@ -1,8 +1,8 @@
 //! guiding-obvhs's BVH intersector against a brute-force loop over every triangle, on ≥ 1e5 rays
 //! per case: random triangle soups, closed meshes seen from inside (every ray must hit:
 //! watertightness), rays aimed exactly at shared edges and vertices, and axis-parallel or
-//! nearly axis-parallel directions. Same primitive, t within 1e-5 relative, same
-//! occlusion answer.
+//! nearly axis-parallel directions, tiny and huge scenes far from the origin. Same
+//! primitive, t within 1e-5 relative, same occlusion answer.
 
 mod support;
 
@@ -222,5 +222,24 @@ fn degenerate_inputs_never_panic() {
         }
         let empty = ObvhsIntersector::build(&[], kind);
         assert!(empty.intersect(&Ray::new(Vec3::ZERO, Vec3::Z)).is_none());
+    }
+}
+
+#[test]
+fn tiny_and_huge_scenes_far_from_the_origin_are_watertight_too() {
+    // obvhs's CWBVH skipped every node within t < 1e-4 of the ray origin: a third of the
+    // rays escaped a box 2e-4 across before the adapter scaled scenes to a fixed size.
+    let mut rng = Pcg32::new(77, 5);
+    for (scale, offset) in [(1e-4f32, 0.0f32), (1e4, 0.0), (1.0, 1e5), (1e4, 1e5)] {
+        let triangles = closed_box(Vec3::splat(offset - scale), Vec3::splat(offset + scale));
+        let rays: Vec<Ray> = (0..100_000)
+            .map(|_| {
+                let inside =
+                    Vec3::splat(offset) + (Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - 0.5) * scale;
+                Ray::new(inside, random_unit(&mut rng))
+            })
+            .collect();
+        assert_no_ray_escapes(&triangles, &rays, &format!("box of half size {scale} at {offset}"));
+        check_equivalent(&triangles, &rays, &format!("box of half size {scale} at {offset}"));
     }
 }

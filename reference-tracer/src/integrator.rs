@@ -231,9 +231,14 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
     /// Offset of a ray leaving `point` on the side of `normal` that `direction` points to:
     /// relative to the scene size and to the magnitude of the coordinates.
     fn spawn(&self, point: Vec3, normal: Vec3, direction: Vec3) -> Vec3 {
-        let epsilon = self.ray_epsilon + 1e-6 * point.abs().max_element();
         let side = if normal.dot(direction) >= 0.0 { 1.0 } else { -1.0 };
-        point + normal * (side * epsilon)
+        point + normal * (side * self.epsilon_at(point))
+    }
+
+    /// How far from a surface at `point` a ray must start or stop not to hit it again:
+    /// the scene-relative epsilon plus a few f32 steps of the coordinates there.
+    fn epsilon_at(&self, point: Vec3) -> f32 {
+        self.ray_epsilon + 1e-6 * point.abs().max_element()
     }
 
     /// Density with which next-event estimation produces direction `wi` towards an
@@ -465,7 +470,11 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
         }
         let origin = self.spawn(point, geometric_normal, wi);
         let t_max = if distance.is_finite() {
-            (distance - 2.0 * self.ray_epsilon).max(0.0) * (1.0 - 1e-5)
+            // Stop short of the light by the spawn offset at both ends, so neither the
+            // surface left nor the emitter itself (rounded far from the origin) occludes.
+            let target = point + wi * distance;
+            let margin = self.epsilon_at(point) + self.epsilon_at(target);
+            (distance - margin).max(0.0) * (1.0 - 1e-5)
         } else {
             f32::INFINITY
         };

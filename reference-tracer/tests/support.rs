@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 
 use reference_tracer::cli::prepare;
 use reference_tracer::integrator::{IntegratorSettings, Method};
+use reference_tracer::output::Image;
 use reference_tracer::render::{render, Budget, RenderSettings, RenderStatistics};
 
 /// A fresh temporary folder for one test.
@@ -69,11 +70,21 @@ pub fn render_scene(
     spp: u32,
     seed: u64,
 ) -> RenderStatistics {
+    render_image(scene, integrator, guide, spp, seed).1
+}
+
+/// [`render_scene`], keeping the image too.
+pub fn render_image(
+    scene: &Path,
+    integrator: IntegratorSettings,
+    guide: Option<guiding_core::HemisphereGridSettings>,
+    spp: u32,
+    seed: u64,
+) -> (Image, RenderStatistics) {
     let mut prepared = prepare(scene, guiding_obvhs::BvhKind::Cwbvh, guide).unwrap();
     let settings = RenderSettings { integrator, budget: Budget::SamplesPerPixel(spp), seed, train_seconds: 0.0 };
     let guide = prepared.guide.as_mut();
-    let (_, statistics) = render(&prepared.scene, &prepared.intersector, guide, &settings, |_| {});
-    statistics
+    render(&prepared.scene, &prepared.intersector, guide, &settings, |_| {})
 }
 
 pub fn settings(method: Method) -> IntegratorSettings {

@@ -6,6 +6,11 @@
 //!
 //! - Triangles are tested with the watertight intersection of Woop et al. 2013
 //!   ([`ShearedRay`]) instead of obvhs's Möller–Trumbore test.
+//! - Triangles and rays are scaled by a power of two that brings the scene's extent to
+//!   about 2¹⁰. obvhs's CWBVH node test skips every node closer to the ray origin than
+//!   t = 10⁻⁴ (an absolute constant), which in a scene a few 10⁻⁴ across culled a third
+//!   of all hits; after scaling that is 10⁻⁷ of the scene, whatever its size. Scaling by
+//!   a power of two is exact, so hits are bit-for-bit those of the unscaled test.
 //! - The hierarchy is built over triangle bounds inflated by 10⁻⁶ of the scene's size:
 //!   obvhs's slab tests are not conservative (a ray leaving a flat node exactly at its
 //!   edge can round to a miss, and direction components under f32::EPSILON are replaced
@@ -69,9 +74,14 @@ enum Hierarchy {
     Cwbvh(CwBvh),
 }
 
+/// log₂ of the size the local frame scales a scene to.
+const LOCAL_SIZE_LOG2: i32 = 10;
+
 /// Closest-hit and occlusion queries over a triangle list, through an obvhs BVH.
 pub struct ObvhsIntersector {
     hierarchy: Hierarchy,
+    /// `local = world · scale`, a power of two.
+    scale: f32,
     /// Triangles in BVH order (the order `primitive_indices` gives), for locality.
     triangles: Vec<[Vec3; 3]>,
     /// Index in the caller's slice of each triangle in BVH order.
@@ -85,7 +95,7 @@ impl ObvhsIntersector {
     pub fn build(triangles: &[Triangle], kind: BvhKind) -> Self {
         let kept: Vec<u32> = (0..triangles.len() as u32).filter(|&i| triangles[i as usize].is_finite()).collect();
         if kept.is_empty() {
-            return Self { hierarchy: Hierarchy::Empty, triangles: Vec::new(), original_index: Vec::new() };
+            return Self { hierarchy: Hierarchy::Empty, scale: 1.0, triangles: Vec::new(), original_index: Vec::new() };
         }
         let (low, high) = kept
             .iter()
@@ -93,12 +103,19 @@ impl ObvhsIntersector {
             .fold((Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)), |(low, high), v| {
                 (low.min(v), high.max(v))
             });
-        let size = (high - low).length() + low.abs().max(high.abs()).max_element();
+        let extent = (high - low).max_element();
+        let magnitude = low.abs().max(high.abs()).max_element();
+        let exponent = if extent > 0.0 && extent.is_finite() { ceil_log2(extent) } else { 0 };
+        // Never so large that coordinates could overflow (|local| ≤ 2¹⁰⁰).
+        let scale = power_of_two((LOCAL_SIZE_LOG2 - exponent).min(100 - ceil_log2(magnitude.max(1e-30))));
+        let local: Vec<[Vec3; 3]> = kept.iter().map(|&i| triangles[i as usize].vertices.map(|v| v * scale)).collect();
+        let (local_low, local_high) = (low * scale, high * scale);
+        let size = (local_high - local_low).length() + local_low.abs().max(local_high.abs()).max_element();
         let margin = Vec3A::splat(BOUNDS_MARGIN * size);
-        let bounds: Vec<InflatedBounds> = kept
+        let bounds: Vec<InflatedBounds> = local
             .iter()
-            .map(|&i| {
-                let [v0, v1, v2] = triangles[i as usize].vertices.map(Vec3A::from);
+            .map(|vertices| {
+                let [v0, v1, v2] = vertices.map(Vec3A::from);
                 InflatedBounds { min: v0.min(v1).min(v2) - margin, max: v0.max(v1).max(v2) + margin }
             })
             .collect();
@@ -117,8 +134,8 @@ impl ObvhsIntersector {
             }
         };
         let original_index: Vec<u32> = primitive_indices.iter().map(|&p| kept[p as usize]).collect();
-        let triangles = original_index.iter().map(|&i| triangles[i as usize].vertices).collect();
-        Self { hierarchy, triangles, original_index }
+        let triangles = primitive_indices.iter().map(|&p| local[p as usize]).collect();
+        Self { hierarchy, scale, triangles, original_index }
     }
 
     /// Number of triangles in the hierarchy.
@@ -136,9 +153,34 @@ impl ObvhsIntersector {
         obvhs::ray::Ray::new(Vec3A::from(ray.origin), direction, ray.t_min, ray.t_max)
     }
 
+    /// The ray in the local frame: same direction, t scaled by the (exact) power of two.
+    fn to_local(&self, ray: &Ray) -> Ray {
+        Ray::segment(ray.origin * self.scale, ray.direction, ray.t_min * self.scale, ray.t_max * self.scale)
+    }
+
     fn is_valid(ray: &Ray) -> bool {
         ray.origin.is_finite() && ray.direction.is_finite() && ray.direction != Vec3::ZERO && ray.t_min < ray.t_max
     }
+}
+
+/// ⌈log₂ x⌉ for finite x > 0, from the f32 bits (this crate has no libm dependency).
+fn ceil_log2(x: f32) -> i32 {
+    let bits = x.to_bits();
+    let exponent = ((bits >> 23) & 0xff) as i32 - 127;
+    let mantissa = bits & 0x7f_ffff;
+    if exponent == -127 {
+        // Subnormal: treat as the smallest normal's exponent; the frame scale stays finite.
+        -126
+    } else if mantissa == 0 {
+        exponent
+    } else {
+        exponent + 1
+    }
+}
+
+/// 2^k as f32, with k clamped to the normal range.
+fn power_of_two(k: i32) -> f32 {
+    f32::from_bits(((k.clamp(-126, 127) + 127) as u32) << 23)
 }
 
 impl Intersector for ObvhsIntersector {
@@ -146,6 +188,7 @@ impl Intersector for ObvhsIntersector {
         if !Self::is_valid(ray) {
             return None;
         }
+        let ray = &self.to_local(ray);
         let sheared = ShearedRay::new(ray.origin, ray.direction);
         // Ties (a ray through a shared edge) go to the lower original index, so the
         // answer does not depend on traversal order.
@@ -174,13 +217,14 @@ impl Intersector for ObvhsIntersector {
                 bvh.ray_traverse(Self::bvh_ray(ray), &mut record, &mut test);
             }
         }
-        best.map(|(primitive, hit)| Hit { t: hit.t, primitive, barycentrics: hit.barycentrics })
+        best.map(|(primitive, hit)| Hit { t: hit.t / self.scale, primitive, barycentrics: hit.barycentrics })
     }
 
     fn occluded(&self, ray: &Ray) -> bool {
         if !Self::is_valid(ray) {
             return false;
         }
+        let ray = &self.to_local(ray);
         let sheared = ShearedRay::new(ray.origin, ray.direction);
         let test = |bvh_ray: &obvhs::ray::Ray, slot: usize| -> f32 {
             // Strictly inside the segment: a shadow ray ending on the light is not blocked by it.
