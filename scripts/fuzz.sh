@@ -37,11 +37,15 @@ seed_corpora() {
 }
 
 seed_corpora
+# Build once, then run the binaries themselves: a failed build is a build error, never
+# mistaken for a crash, and the sources can change while a long run goes on.
 cargo fuzz build --sanitizer none
+binaries="fuzz/target/$(rustc -vV | sed -n 's/^host: //p')/release"
 for target in "${targets[@]}"; do
     start=$SECONDS
     log=$(mktemp)
-    if ! cargo fuzz run --sanitizer none "$target" "fuzz/corpus/$target" -- \
+    mkdir -p "fuzz/artifacts/$target"
+    if ! "$binaries/$target" "fuzz/corpus/$target" -artifact_prefix="fuzz/artifacts/$target/" \
         -max_total_time="$seconds" -print_final_stats=1 -max_len=65536 >"$log" 2>&1; then
         tail -40 "$log"
         echo "fuzz: $target crashed; the input is in fuzz/artifacts/$target" >&2

@@ -1,10 +1,12 @@
 #!/usr/bin/env bash
-# The whole test suite, as CI runs it: set-up, formatting, lints, docs, the no_std core
-# build and its dependency list, every test of the workspace (Rust, C and C++, valgrind),
-# then a 30-second smoke run of each fuzz target. Prints each stage's time.
+# The whole test suite, as CI runs it: set-up (with Embree 4), formatting, lints, docs,
+# the no_std core build and its dependency list, every test of the workspace (Rust, C and
+# C++ under valgrind, Embree against obvhs), then a 30-second smoke run of each fuzz
+# target. Prints each stage's time.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 . scripts/setup.sh
+scripts/provision-embree.sh
 
 stage() {
     local name=$1
@@ -26,9 +28,9 @@ core_dependencies_are_glam_and_libm() {
 total=$SECONDS
 stage "format" cargo fmt --all -- --check
 stage "format (fuzz)" cargo fmt --manifest-path fuzz/Cargo.toml -- --check
-stage "clippy" cargo clippy --workspace --all-targets -- -D warnings
+stage "clippy" cargo clippy --workspace --all-targets --features reference-tracer/embree -- -D warnings
 stage "docs" env RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps
 stage "no_std core" core_dependencies_are_glam_and_libm
-stage "tests" cargo test --workspace
+stage "tests" cargo test --workspace --features reference-tracer/embree
 stage "fuzz smoke" ./scripts/fuzz.sh "${LODESTAR_FUZZ_SECONDS:-30}"
 echo "==> all stages passed in $((SECONDS - total)) s"

@@ -3,12 +3,12 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use crate::scene_intersector::{IntersectorChoice, SceneIntersector};
 use clap::{Args, Parser, Subcommand};
 use guiding_core::{
     Guide, HemisphereGrid, HemisphereGridSettings, HemisphereMapping, IntegralEstimator, LearningRate, PatchLayout,
     UpdateRule,
 };
-use guiding_obvhs::{BvhKind, ObvhsIntersector};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::integrator::{IntegratorSettings, Method};
@@ -164,9 +164,9 @@ pub struct TraceOptions {
     /// time counts towards --seconds).
     #[arg(long, default_value_t = 0.0)]
     train_seconds: f64,
-    /// BVH: cwbvh or bvh2.
-    #[arg(long, default_value = "cwbvh", value_parser = parse_bvh)]
-    bvh: BvhKind,
+    /// Ray tracing library: obvhs (CWBVH), obvhs-bvh2, or embree (needs the `embree` feature).
+    #[arg(long, default_value = "obvhs", value_parser = IntersectorChoice::from_name)]
+    intersector: IntersectorChoice,
 }
 
 fn parse_method(s: &str) -> Result<Method, String> {
@@ -204,14 +204,6 @@ fn parse_mapping(s: &str) -> Result<HemisphereMapping, String> {
         "cylindrical" => Ok(HemisphereMapping::Cylindrical),
         "concentric" => Ok(HemisphereMapping::ConcentricSquare),
         _ => Err(format!("unknown mapping `{s}` (cylindrical, concentric)")),
-    }
-}
-
-fn parse_bvh(s: &str) -> Result<BvhKind, String> {
-    match s {
-        "cwbvh" => Ok(BvhKind::Cwbvh),
-        "bvh2" => Ok(BvhKind::Bvh2),
-        _ => Err(format!("unknown BVH `{s}` (cwbvh, bvh2)")),
     }
 }
 
@@ -265,7 +257,7 @@ pub struct Prepared {
     /// The scene.
     pub scene: Scene,
     /// Its intersector.
-    pub intersector: ObvhsIntersector,
+    pub intersector: SceneIntersector,
     /// The guide, for guided methods.
     pub guide: Option<HemisphereGrid>,
     /// Set-up timings.
@@ -273,12 +265,16 @@ pub struct Prepared {
 }
 
 /// Loads a scene, builds the BVH and (when `guide` is given) the hemisphere grid.
-pub fn prepare(path: &Path, bvh: BvhKind, guide: Option<HemisphereGridSettings>) -> Result<Prepared, String> {
+pub fn prepare(
+    path: &Path,
+    intersector: IntersectorChoice,
+    guide: Option<HemisphereGridSettings>,
+) -> Result<Prepared, String> {
     let start = Instant::now();
     let scene = Scene::load(path).map_err(|e| e.to_string())?;
     let load = start.elapsed().as_secs_f64();
     let start = Instant::now();
-    let intersector = ObvhsIntersector::build(&scene.triangles, bvh);
+    let intersector = SceneIntersector::build(&scene.triangles, intersector)?;
     let bvh_seconds = start.elapsed().as_secs_f64();
     let start = Instant::now();
     let guide = match guide {
@@ -467,7 +463,8 @@ fn run_render(args: &RenderArgs) -> Result<(), String> {
         None => None,
     };
     let pool = thread_pool(options.threads)?;
-    let mut prepared = prepare(&args.scene, options.bvh, args.integrator.uses_guide().then_some(guide_settings))?;
+    let mut prepared =
+        prepare(&args.scene, options.intersector, args.integrator.uses_guide().then_some(guide_settings))?;
     for warning in &prepared.scene.warnings {
         eprintln!("warning: {}: {warning}", args.scene.display());
     }
@@ -520,7 +517,7 @@ fn run_reference(args: &ReferenceArgs) -> Result<(), String> {
     }
     let pool = thread_pool(args.threads)?;
     let guide = args.integrator.uses_guide().then(HemisphereGridSettings::default);
-    let mut prepared = prepare(&args.scene, BvhKind::default(), guide)?;
+    let mut prepared = prepare(&args.scene, IntersectorChoice::default(), guide)?;
     let integrator = IntegratorSettings { method: args.integrator, ..Default::default() };
     let settings =
         RenderSettings { integrator, budget: Budget::SamplesPerPixel(args.spp), seed: args.seed, train_seconds: 0.0 };
@@ -556,7 +553,7 @@ fn run_compare(args: &CompareArgs) -> Result<(), String> {
     let mut rows = Vec::new();
     let mut names = Vec::new();
     for &method in &args.methods {
-        let mut prepared = prepare(&args.scene, options.bvh, method.uses_guide().then_some(guide_settings))?;
+        let mut prepared = prepare(&args.scene, options.intersector, method.uses_guide().then_some(guide_settings))?;
         let camera = &prepared.scene.camera;
         if (reference.width, reference.height) != (camera.width as usize, camera.height as usize) {
             return Err(format!(

@@ -20,3 +20,4 @@ pub mod render;
 pub mod report;
 pub mod sampling;
 pub mod scene;
+pub mod scene_intersector;

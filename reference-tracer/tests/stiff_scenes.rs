@@ -219,3 +219,15 @@ fn the_scene_moved_to_1e5_or_scaled_by_1e_minus_4_or_1e4_renders_the_same() {
         }
     }
 }
+
+#[test]
+fn nan_and_infinite_environment_texels_are_rejected_with_their_position() {
+    for (name, bad) in [("nan", f32::NAN), ("inf", f32::INFINITY), ("negative", -1.0)] {
+        let mut pixels = vec![Vec3::splat(0.5); 8 * 4];
+        pixels[2 * 8 + 5] = Vec3::new(0.5, bad, 0.5);
+        let scene = floor_scene(&format!("stiff-texel-{name}"), json!({ "type": "image", "file": "sky.pfm" }));
+        write_pfm(&scene.parent().unwrap().join("sky.pfm"), &Image { width: 8, height: 4, pixels }).unwrap();
+        let message = Scene::load(&scene).err().expect("the texel is rejected").to_string();
+        assert!(message.contains("environment.file") && message.contains("texel (5, 2)"), "{name}: {message}");
+    }
+}

@@ -7,6 +7,7 @@ use reference_tracer::cli::prepare;
 use reference_tracer::integrator::{IntegratorSettings, Method};
 use reference_tracer::output::Image;
 use reference_tracer::render::{render, Budget, RenderSettings, RenderStatistics};
+use reference_tracer::scene_intersector::IntersectorChoice;
 
 /// A fresh temporary folder for one test.
 pub fn temp_folder(name: &str) -> PathBuf {
@@ -81,7 +82,7 @@ pub fn render_image(
     spp: u32,
     seed: u64,
 ) -> (Image, RenderStatistics) {
-    let mut prepared = prepare(scene, guiding_obvhs::BvhKind::Cwbvh, guide).unwrap();
+    let mut prepared = prepare(scene, IntersectorChoice::default(), guide).unwrap();
     let settings = RenderSettings { integrator, budget: Budget::SamplesPerPixel(spp), seed, train_seconds: 0.0 };
     let guide = prepared.guide.as_mut();
     render(&prepared.scene, &prepared.intersector, guide, &settings, |_| {})
