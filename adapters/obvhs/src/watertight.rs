@@ -6,14 +6,19 @@
 //! two triangles (bit-identical vertices) cannot fall between them. Edge functions that
 //! round to exactly zero are recomputed in f64.
 
-use glam::{Vec2, Vec3};
+use glam::{Vec2, Vec3, Vec3A};
 
-/// A ray prepared for watertight triangle tests: its shear and permuted axes.
+/// A ray prepared for watertight triangle tests: its shear and permuted axes, folded into
+/// three row vectors so a vertex is projected by dot products instead of indexing by
+/// axis (which compiles to branches). Multiplying by the rows' zeros and ones is exact,
+/// so the projection is bit for bit the permuted one of the paper.
 #[derive(Clone, Copy, Debug)]
 pub struct ShearedRay {
-    origin: Vec3,
-    axes: [usize; 3],
-    shear: Vec3,
+    origin: Vec3A,
+    /// e_kx − S_x·e_kz, e_ky − S_y·e_kz and e_kz.
+    rows: [Vec3A; 3],
+    /// S_z = 1 / d_kz.
+    shear_z: f32,
 }
 
 /// A hit of [`ShearedRay::intersect`]: distance and barycentrics (b1, b2) of v1 and v2.
@@ -35,16 +40,21 @@ impl ShearedRay {
         if direction[kz] < 0.0 {
             core::mem::swap(&mut kx, &mut ky);
         }
-        let shear = Vec3::new(direction[kx] / direction[kz], direction[ky] / direction[kz], 1.0 / direction[kz]);
-        Self { origin, axes: [kx, ky, kz], shear }
+        let (shear_x, shear_y) = (direction[kx] / direction[kz], direction[ky] / direction[kz]);
+        let unit = |k: usize| Vec3A::from(Vec3::AXES[k]);
+        Self {
+            origin: origin.into(),
+            rows: [unit(kx) - shear_x * unit(kz), unit(ky) - shear_y * unit(kz), unit(kz)],
+            shear_z: 1.0 / direction[kz],
+        }
     }
 
     /// The hit with `t_min < t ≤ t_max`, either side of the triangle, if any.
     #[inline]
     pub fn intersect(&self, [v0, v1, v2]: [Vec3; 3], t_min: f32, t_max: f32) -> Option<TriangleHit> {
-        let [kx, ky, kz] = self.axes;
-        let (a, b, c) = (v0 - self.origin, v1 - self.origin, v2 - self.origin);
-        let project = |p: Vec3| Vec2::new(p[kx] - self.shear.x * p[kz], p[ky] - self.shear.y * p[kz]);
+        let [row_x, row_y, row_z] = self.rows;
+        let (a, b, c) = (Vec3A::from(v0) - self.origin, Vec3A::from(v1) - self.origin, Vec3A::from(v2) - self.origin);
+        let project = |p: Vec3A| Vec2::new(row_x.dot(p), row_y.dot(p));
         let (pa, pb, pc) = (project(a), project(b), project(c));
         let mut u = pc.x * pb.y - pc.y * pb.x;
         let mut v = pa.x * pc.y - pa.y * pc.x;
@@ -62,7 +72,7 @@ impl ShearedRay {
         if determinant == 0.0 {
             return None;
         }
-        let scaled_t = self.shear.z * (u * a[kz] + v * b[kz] + w * c[kz]);
+        let scaled_t = self.shear_z * (u * row_z.dot(a) + v * row_z.dot(b) + w * row_z.dot(c));
         let inverse = 1.0 / determinant;
         let t = scaled_t * inverse;
         if !(t > t_min && t <= t_max) {
