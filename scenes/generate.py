@@ -9,6 +9,9 @@ guiding exists for.
 window: a closed room lit only by the environment (the Venice sunset map) through one
 small window.
 glossy: a box room with a rough metal sphere and a glass block under a small ceiling light.
+many_lights: a floor plan of 8 × 8 rooms joined by doorways, one small ceiling light in
+each (64 lights of equal power): from any point most lights are behind walls, the case
+learned light selection exists for.
 """
 import json
 import math
@@ -190,6 +193,58 @@ def glossy_scene(folder):
     }
 
 
+def many_lights_scene():
+    rooms, size, height = 8, 4.0, 3.0
+    door_half, door_top = 0.5, 2.2
+    extent = rooms * size
+    shapes = []
+    # Floor facing up, ceiling facing down, over the whole plan.
+    shapes.append(quad([(0, 0, 0), (0, 0, extent), (extent, 0, extent), (extent, 0, 0)], "white"))
+    shapes.append(quad([(0, height, 0), (extent, height, 0), (extent, height, extent), (0, height, extent)], "white"))
+
+    def wall(a, b, along_x, doorway):
+        """A wall from a to b (a line at constant z if along_x, else constant x), seen
+        from both sides as one two-sided quad per piece, with an optional doorway."""
+        pieces = [(a, b, 0.0, height)]
+        if doorway:
+            mid = 0.5 * (a + b)
+            pieces = [(a, mid - door_half, 0.0, height), (mid + door_half, b, 0.0, height),
+                      (mid - door_half, mid + door_half, door_top, height)]
+        return pieces
+
+    for line in range(rooms + 1):
+        c = line * size
+        outer = line in (0, rooms)
+        for cell in range(rooms):
+            a, b = cell * size, (cell + 1) * size
+            for along_x in (True, False):
+                for u0, u1, y0, y1 in wall(a, b, along_x, not outer):
+                    if along_x:  # the plane z = c
+                        corners = [(u0, y0, c), (u1, y0, c), (u1, y1, c), (u0, y1, c)]
+                    else:  # the plane x = c
+                        corners = [(c, y0, u0), (c, y1, u0), (c, y1, u1), (c, y0, u1)]
+                    # Both faces: two quads of opposite winding.
+                    shapes.append(quad(corners, "white"))
+                    shapes.append(quad(corners[::-1], "white"))
+    # One small light per room, just under the ceiling, facing down.
+    y = height - 0.01
+    for i in range(rooms):
+        for j in range(rooms):
+            x, z = (i + 0.5) * size, (j + 0.5) * size
+            h = 0.15
+            shapes.append(quad([(x - h, y, z - h), (x + h, y, z - h), (x + h, y, z + h), (x - h, y, z + h)], "lamp"))
+    return {
+        "format": 1,
+        "camera": {"eye": [9.3, 1.6, 9.2], "target": [15.0, 1.2, 14.0], "up": [0, 1, 0],
+                   "fov_y_deg": 65.0, "width": 320, "height": 240},
+        "materials": {
+            "white": {"type": "diffuse", "albedo": [0.7, 0.7, 0.7]},
+            "lamp": {"type": "diffuse", "albedo": [0.8, 0.8, 0.8], "emission": [300, 280, 250]},
+        },
+        "shapes": shapes,
+    }
+
+
 def write(name, scene):
     folder = os.path.join(HERE, name)
     os.makedirs(folder, exist_ok=True)
@@ -202,3 +257,4 @@ if __name__ == "__main__":
     write("door", door_scene())
     write("window", window_scene())
     write("glossy", glossy_scene(os.path.join(HERE, "glossy")))
+    write("many_lights", many_lights_scene())

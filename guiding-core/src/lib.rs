@@ -23,6 +23,8 @@ pub mod validation;
 
 #[cfg(feature = "hemisphere")]
 pub mod hemisphere;
+#[cfg(feature = "lights")]
+pub mod lights;
 
 pub use bytes::reseal_checksum;
 pub use distribution::{
@@ -39,3 +41,5 @@ pub use update_rule::{blend, classify_target, IntegralEstimator, LearningRate, U
 
 #[cfg(feature = "hemisphere")]
 pub use hemisphere::{HemisphereGrid, HemisphereGridSettings, HemisphereMapping, PatchLayout, ProbeId, ProbeSet};
+#[cfg(feature = "lights")]
+pub use lights::{LightCell, LightChoice, LightGuide, LightGuideSettings, LightUpdateRule};

@@ -191,8 +191,27 @@ pub fn chi_square_test<D: DirectionalDistribution>(
             cells.push((probability * settings.samples as f64, observed[i * np + j]));
         }
     }
-    cells.sort_by(|a, b| a.0.total_cmp(&b.0));
+    pooled_chi_square(cells, settings.min_expected, settings.samples as u64, inconsistent)
+}
 
+/// Chi-square of a discrete sampler: `probabilities[k]` is the claimed probability of
+/// outcome k, `observed[k]` how often `samples` draws produced it. Cells expected fewer
+/// than `min_expected` times are pooled (smallest first).
+pub fn discrete_chi_square(probabilities: &[f64], observed: &[u64], min_expected: f64) -> ChiSquareReport {
+    let samples: u64 = observed.iter().sum();
+    let cells = probabilities.iter().zip(observed).map(|(&p, &o)| (p * samples as f64, o)).collect();
+    pooled_chi_square(cells, min_expected, samples, 0)
+}
+
+/// The statistic over (expected, observed) cells, pooling those expected fewer than
+/// `min_expected` times; samples in cells of zero expectation are counted apart.
+fn pooled_chi_square(
+    mut cells: Vec<(f64, u64)>,
+    min_expected: f64,
+    samples: u64,
+    inconsistent: u64,
+) -> ChiSquareReport {
+    cells.sort_by(|a, b| a.0.total_cmp(&b.0));
     let mut statistic = 0.0;
     let mut bins = 0u32;
     let mut zero_cells = 0u64;
@@ -202,10 +221,10 @@ pub fn chi_square_test<D: DirectionalDistribution>(
             zero_cells += observed;
             continue;
         }
-        if expected < settings.min_expected {
+        if expected < min_expected {
             pool_expected += expected;
             pool_observed += observed;
-            if pool_expected >= settings.min_expected {
+            if pool_expected >= min_expected {
                 statistic += square(pool_observed as f64 - pool_expected) / pool_expected;
                 bins += 1;
                 pool_expected = 0.0;
@@ -222,7 +241,7 @@ pub fn chi_square_test<D: DirectionalDistribution>(
     }
     let degrees_of_freedom = bins.saturating_sub(1).max(1);
     ChiSquareReport {
-        samples: settings.samples as u64,
+        samples,
         statistic,
         degrees_of_freedom,
         p_value: chi_square_survival(statistic, degrees_of_freedom),

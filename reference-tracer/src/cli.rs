@@ -5,13 +5,14 @@ use std::time::Instant;
 
 use crate::scene_intersector::{IntersectorChoice, SceneIntersector};
 use clap::{Args, Parser, Subcommand};
+use glam::Vec3;
 use guiding_core::{
-    Guide, HemisphereGrid, HemisphereGridSettings, HemisphereMapping, IntegralEstimator, LearningRate, PatchLayout,
-    UpdateRule,
+    Guide, HemisphereGrid, HemisphereGridSettings, HemisphereMapping, IntegralEstimator, LearningRate, LightGuide,
+    LightGuideSettings, LightUpdateRule, PatchLayout, UpdateRule,
 };
 use indicatif::{ProgressBar, ProgressStyle};
 
-use crate::integrator::{IntegratorSettings, Method};
+use crate::integrator::{IntegratorSettings, LightSelection, Method};
 use crate::metrics::{image_error, ImageError};
 use crate::output::{read_image, write_exr, write_pfm, write_png, Image};
 use crate::render::{render, Budget, RenderSettings, RenderStatistics};
@@ -41,9 +42,10 @@ enum Command {
 struct CompareArgs {
     /// The scene file (scene.json).
     scene: PathBuf,
-    /// Comma-separated methods, e.g. pt,nee,guided,guided-nee.
-    #[arg(long, value_delimiter = ',', value_parser = parse_method, required = true)]
-    methods: Vec<Method>,
+    /// Comma-separated methods, e.g. pt,nee,guided,guided-nee; a method may name its
+    /// light selection, e.g. nee:uniform,nee:power,nee:learned (else --light-selection).
+    #[arg(long, value_delimiter = ',', value_parser = parse_compared_method, required = true)]
+    methods: Vec<(Method, Option<LightSelection>)>,
     /// Wall-clock seconds per method.
     #[arg(long)]
     seconds: f64,
@@ -167,6 +169,32 @@ pub struct TraceOptions {
     /// Ray tracing library: obvhs (CWBVH), obvhs-bvh2, or embree (needs the `embree` feature).
     #[arg(long, default_value = "obvhs", value_parser = IntersectorChoice::from_name)]
     intersector: IntersectorChoice,
+    /// Next-event light selection: uniform, power, or learned (Eq. 3, per grid cell).
+    #[arg(long, default_value = "power", value_parser = LightSelection::from_name)]
+    light_selection: LightSelection,
+    /// Learned selection's rule: mean (occluded rays count as zero), unoccluded (the seed's
+    /// Eq. 3: only arriving rays), or visibility (arrived / shot, times power).
+    #[arg(long, default_value = "mean", value_parser = parse_light_rule)]
+    light_rule: LightUpdateRule,
+    /// Learned selection's memory budget, MiB.
+    #[arg(long, default_value_t = 1.0)]
+    light_guide_mib: f64,
+}
+
+fn parse_compared_method(s: &str) -> Result<(Method, Option<LightSelection>), String> {
+    match s.split_once(':') {
+        Some((method, selection)) => Ok((parse_method(method)?, Some(LightSelection::from_name(selection)?))),
+        None => Ok((parse_method(s)?, None)),
+    }
+}
+
+fn parse_light_rule(s: &str) -> Result<LightUpdateRule, String> {
+    match s {
+        "mean" => Ok(LightUpdateRule::MeanContribution),
+        "unoccluded" => Ok(LightUpdateRule::UnoccludedAverage),
+        "visibility" => Ok(LightUpdateRule::VisibilityRatio),
+        _ => Err(format!("unknown light rule `{s}` (mean, unoccluded, visibility)")),
+    }
 }
 
 fn parse_method(s: &str) -> Result<Method, String> {
@@ -237,7 +265,22 @@ impl TraceOptions {
             rr_depth: self.rr_depth,
             guide_probability: self.p_guide,
             learn: true,
+            light_selection: self.light_selection,
         }
+    }
+
+    /// The light guide's settings when lights are selected as learned.
+    fn light_guide_settings(&self) -> Result<Option<LightGuideSettings>, String> {
+        if self.light_selection != LightSelection::Learned {
+            return Ok(None);
+        }
+        if !(self.light_guide_mib.is_finite() && self.light_guide_mib > 0.0) {
+            return Err(format!("--light-guide-mib {} must be positive", self.light_guide_mib));
+        }
+        let budget_bytes = (self.light_guide_mib * (1 << 20) as f64) as usize;
+        let settings = LightGuideSettings { budget_bytes, rule: self.light_rule, ..Default::default() };
+        settings.validate().map_err(|e| e.to_string())?;
+        Ok(Some(settings))
     }
 }
 
@@ -260,6 +303,8 @@ pub struct Prepared {
     pub intersector: SceneIntersector,
     /// The guide, for guided methods.
     pub guide: Option<HemisphereGrid>,
+    /// The learned light selection, when asked for and the scene has area lights.
+    pub light_guide: Option<LightGuide>,
     /// Set-up timings.
     pub times: SetupTimes,
 }
@@ -269,6 +314,17 @@ pub fn prepare(
     path: &Path,
     intersector: IntersectorChoice,
     guide: Option<HemisphereGridSettings>,
+) -> Result<Prepared, String> {
+    prepare_with_lights(path, intersector, guide, None)
+}
+
+/// [`prepare`], plus a light guide over the scene's bounds when `light_guide` is given
+/// and the scene has area lights.
+pub fn prepare_with_lights(
+    path: &Path,
+    intersector: IntersectorChoice,
+    guide: Option<HemisphereGridSettings>,
+    light_guide: Option<LightGuideSettings>,
 ) -> Result<Prepared, String> {
     let start = Instant::now();
     let scene = Scene::load(path).map_err(|e| e.to_string())?;
@@ -281,8 +337,22 @@ pub fn prepare(
         Some(settings) => Some(HemisphereGrid::build(&scene.triangles, settings).map_err(|e| format!("guide: {e}"))?),
         None => None,
     };
+    let light_guide = match light_guide {
+        Some(settings) if !scene.lights.is_empty() => {
+            let (low, high) = scene
+                .triangles
+                .iter()
+                .flat_map(|t| t.vertices)
+                .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(l, h), v| (l.min(v), h.max(v)));
+            Some(
+                LightGuide::new(low, high, &scene.lights.powers(), settings)
+                    .map_err(|e| format!("light guide: {e}"))?,
+            )
+        }
+        _ => None,
+    };
     let times = SetupTimes { load, bvh: bvh_seconds, guide: start.elapsed().as_secs_f64() };
-    Ok(Prepared { scene, intersector, guide, times })
+    Ok(Prepared { scene, intersector, guide, light_guide, times })
 }
 
 fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool, String> {
@@ -336,29 +406,31 @@ pub fn render_prepared(
     let mut checkpoints = Vec::new();
     let mut previous_seconds = 0.0;
     let guide = if settings.integrator.method.uses_guide() { prepared.guide.as_mut() } else { None };
-    let (image, statistics) = render(&prepared.scene, &prepared.intersector, guide, settings, |progress| {
-        match settings.budget {
-            Budget::SamplesPerPixel(_) => bar.set_position(progress.passes as u64),
-            Budget::Seconds(_) => {
-                bar.set_position((progress.seconds * 1000.0) as u64);
-                bar.set_message(format!("{} spp", progress.passes));
-            }
-        }
-        let crossed = report_times.iter().any(|&t| previous_seconds < t && progress.seconds >= t);
-        previous_seconds = progress.seconds;
-        if let Some(reference) = reference {
-            if progress.passes.is_power_of_two() || crossed {
-                if let Some(error) = image_error(&progress.image(width, height), reference) {
-                    checkpoints.push(Checkpoint {
-                        seconds: progress.seconds,
-                        spp: progress.passes,
-                        counters: progress.counters,
-                        error,
-                    });
+    let light_guide = prepared.light_guide.as_mut();
+    let (image, statistics) =
+        render(&prepared.scene, &prepared.intersector, guide, light_guide, settings, |progress| {
+            match settings.budget {
+                Budget::SamplesPerPixel(_) => bar.set_position(progress.passes as u64),
+                Budget::Seconds(_) => {
+                    bar.set_position((progress.seconds * 1000.0) as u64);
+                    bar.set_message(format!("{} spp", progress.passes));
                 }
             }
-        }
-    });
+            let crossed = report_times.iter().any(|&t| previous_seconds < t && progress.seconds >= t);
+            previous_seconds = progress.seconds;
+            if let Some(reference) = reference {
+                if progress.passes.is_power_of_two() || crossed {
+                    if let Some(error) = image_error(&progress.image(width, height), reference) {
+                        checkpoints.push(Checkpoint {
+                            seconds: progress.seconds,
+                            spp: progress.passes,
+                            counters: progress.counters,
+                            error,
+                        });
+                    }
+                }
+            }
+        });
     bar.finish_and_clear();
     if let Some(reference) = reference {
         if checkpoints.last().is_none_or(|c| c.spp != statistics.passes) {
@@ -416,9 +488,18 @@ pub fn statistics_json(
             "epochs": s.epochs,
         })
     });
+    let light_guide = prepared.light_guide.as_ref().map(|g| {
+        serde_json::json!({
+            "cells": g.resolution(),
+            "lights": g.light_count(),
+            "memory_bytes": g.memory_bytes(),
+            "rejected_updates": g.rejected_updates(),
+        })
+    });
     serde_json::json!({
         "scene": prepared.scene.path.display().to_string(),
         "method": method.name(),
+        "light_guide": light_guide,
         "width": image.width,
         "height": image.height,
         "passes": statistics.passes,
@@ -463,8 +544,12 @@ fn run_render(args: &RenderArgs) -> Result<(), String> {
         None => None,
     };
     let pool = thread_pool(options.threads)?;
-    let mut prepared =
-        prepare(&args.scene, options.intersector, args.integrator.uses_guide().then_some(guide_settings))?;
+    let mut prepared = prepare_with_lights(
+        &args.scene,
+        options.intersector,
+        args.integrator.uses_guide().then_some(guide_settings),
+        options.light_guide_settings()?,
+    )?;
     for warning in &prepared.scene.warnings {
         eprintln!("warning: {}: {warning}", args.scene.display());
     }
@@ -552,8 +637,19 @@ fn run_compare(args: &CompareArgs) -> Result<(), String> {
     let pool = thread_pool(options.threads)?;
     let mut rows = Vec::new();
     let mut names = Vec::new();
-    for &method in &args.methods {
-        let mut prepared = prepare(&args.scene, options.intersector, method.uses_guide().then_some(guide_settings))?;
+    for &(method, selection) in &args.methods {
+        let mut options = options.clone();
+        options.light_selection = selection.unwrap_or(options.light_selection);
+        let name = match selection {
+            Some(selection) => format!("{}:{}", method.name(), selection.name()),
+            None => method.name().to_string(),
+        };
+        let mut prepared = prepare_with_lights(
+            &args.scene,
+            options.intersector,
+            method.uses_guide().then_some(guide_settings),
+            options.light_guide_settings()?,
+        )?;
         let camera = &prepared.scene.camera;
         if (reference.width, reference.height) != (camera.width as usize, camera.height as usize) {
             return Err(format!(
@@ -561,7 +657,7 @@ fn run_compare(args: &CompareArgs) -> Result<(), String> {
                 reference.width, reference.height, camera.width, camera.height
             ));
         }
-        eprintln!("{}: rendering {} s", method.name(), args.seconds);
+        eprintln!("{name}: rendering {} s", args.seconds);
         let settings = RenderSettings {
             integrator: options.integrator(method),
             budget: Budget::Seconds(args.seconds),
@@ -570,13 +666,13 @@ fn run_compare(args: &CompareArgs) -> Result<(), String> {
         };
         let (image, statistics, checkpoints) =
             pool.install(|| render_prepared(&mut prepared, &settings, Some(&reference), &report_times, true));
-        let image_path = args.out.join(format!("{}.exr", method.name()));
+        let image_path = args.out.join(format!("{}.exr", name.replace(':', "-")));
         write_outputs(&image_path, &image, false)?;
         let json = statistics_json(method, &prepared, &statistics, &image, pool.current_num_threads());
         std::fs::write(sibling(&image_path, "json"), serde_json::to_string_pretty(&json).unwrap_or_default())
             .map_err(|e| format!("cannot write statistics: {e}"))?;
-        rows.extend(crate::report::checkpoint_rows(method.name(), &checkpoints));
-        names.push(method.name().to_string());
+        rows.extend(crate::report::checkpoint_rows(&name, &checkpoints));
+        names.push(name);
     }
     crate::report::write_csv(&args.out.join("compare.csv"), &rows)?;
     let baseline = if names.iter().any(|n| n == "nee") { "nee" } else { names[0].as_str() };

@@ -7,7 +7,8 @@
 use glam::{Vec2, Vec3};
 use guiding_core::hemisphere::ProbeDistribution;
 use guiding_core::{
-    DirectionalDistribution, Guide, HemisphereGrid, Intersector, Lambertian, Pcg32, ProbeId, Ray, ScatteringFunction,
+    DirectionalDistribution, Guide, HemisphereGrid, Intersector, Lambertian, LightGuide, Pcg32, ProbeId, Ray,
+    ScatteringFunction,
 };
 
 use crate::color::luminance;
@@ -71,11 +72,54 @@ pub struct IntegratorSettings {
     pub guide_probability: f32,
     /// Whether guided paths update the guide.
     pub learn: bool,
+    /// How next-event estimation picks an area light.
+    pub light_selection: LightSelection,
 }
 
 impl Default for IntegratorSettings {
     fn default() -> Self {
-        Self { method: Method::Nee, max_depth: 32, rr_depth: 4, guide_probability: 0.3, learn: true }
+        Self {
+            method: Method::Nee,
+            max_depth: 32,
+            rr_depth: 4,
+            guide_probability: 0.3,
+            learn: true,
+            light_selection: LightSelection::Power,
+        }
+    }
+}
+
+/// How next-event estimation picks one of the scene's area lights (emissive triangles).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LightSelection {
+    /// Every light equally likely.
+    Uniform,
+    /// In proportion to power (luminance × area).
+    Power,
+    /// From a [`LightGuide`] learned from shadow rays (Eq. 3), with power and uniform
+    /// defensive shares; learns during every pass.
+    Learned,
+}
+
+impl LightSelection {
+    /// Every choice, in the order the command line lists them.
+    pub const ALL: [LightSelection; 3] = [LightSelection::Uniform, LightSelection::Power, LightSelection::Learned];
+
+    /// The command-line name.
+    pub fn name(self) -> &'static str {
+        match self {
+            LightSelection::Uniform => "uniform",
+            LightSelection::Power => "power",
+            LightSelection::Learned => "learned",
+        }
+    }
+
+    /// Parses a command-line name.
+    pub fn from_name(name: &str) -> Result<Self, String> {
+        Self::ALL
+            .into_iter()
+            .find(|s| s.name() == name)
+            .ok_or_else(|| format!("unknown light selection `{name}` (uniform, power, learned)"))
     }
 }
 
@@ -200,17 +244,21 @@ pub struct PathTracer<'a, I: Intersector> {
     scene: &'a Scene,
     intersector: &'a I,
     guide: Option<&'a HemisphereGrid>,
+    /// The learned light selection, when `settings.light_selection` is `Learned`.
+    light_guide: Option<&'a LightGuide>,
     settings: IntegratorSettings,
     ray_epsilon: f32,
     environment_choice: f32,
 }
 
 impl<'a, I: Intersector> PathTracer<'a, I> {
-    /// A tracer; `guide` is used by the guided methods only.
+    /// A tracer; `guide` is used by the guided methods only, `light_guide` when lights
+    /// are selected as learned.
     pub fn new(
         scene: &'a Scene,
         intersector: &'a I,
         guide: Option<&'a HemisphereGrid>,
+        light_guide: Option<&'a LightGuide>,
         settings: IntegratorSettings,
     ) -> Self {
         let (low, high) = scene
@@ -225,7 +273,8 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
             (false, _) => 0.0,
         };
         let guide = if settings.method.uses_guide() { guide } else { None };
-        Self { scene, intersector, guide, settings, ray_epsilon, environment_choice }
+        let light_guide = light_guide.filter(|_| settings.light_selection == LightSelection::Learned);
+        Self { scene, intersector, guide, light_guide, settings, ray_epsilon, environment_choice }
     }
 
     /// Offset of a ray leaving `point` on the side of `normal` that `direction` points to:
@@ -244,7 +293,38 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
     /// Density with which next-event estimation produces direction `wi` towards an
     /// emitter hit at `point` on `triangle`, seen from `from`.
     fn light_pdf(&self, triangle: u32, from: Vec3, point: Vec3, normal: Vec3) -> f32 {
-        (1.0 - self.environment_choice) * self.scene.lights.pdf(triangle, from, point, normal)
+        let Some(light) = self.scene.lights.light_of_triangle(triangle) else { return 0.0 };
+        (1.0 - self.environment_choice)
+            * self.selection_probability(from, light)
+            * self.scene.lights.point_pdf(light, from, point, normal)
+    }
+
+    /// Picks an area light for next-event estimation at `point`: its index and probability.
+    fn select_light(&self, point: Vec3, u: f32) -> Option<(u32, f32)> {
+        let lights = &self.scene.lights;
+        if lights.is_empty() {
+            return None;
+        }
+        match (self.settings.light_selection, self.light_guide) {
+            (LightSelection::Uniform, _) => {
+                let count = lights.len() as u32;
+                Some((((u * count as f32) as u32).min(count - 1), 1.0 / count as f32))
+            }
+            (LightSelection::Learned, Some(guide)) => {
+                let choice = guide.select(guide.cell(point)?, u);
+                Some((choice.light, choice.probability))
+            }
+            _ => Some(lights.select_by_power(u)),
+        }
+    }
+
+    /// The probability [`select_light`](Self::select_light) gives `light` at `from`.
+    fn selection_probability(&self, from: Vec3, light: u32) -> f32 {
+        match (self.settings.light_selection, self.light_guide) {
+            (LightSelection::Uniform, _) => 1.0 / self.scene.lights.len() as f32,
+            (LightSelection::Learned, Some(guide)) => guide.cell(from).map_or(0.0, |c| guide.probability(c, light)),
+            _ => self.scene.lights.power_probability(light),
+        }
     }
 
     /// Radiance arriving along `ray` (one sample), adding its counters to `counters`.
@@ -451,21 +531,29 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
         counters: &mut PathCounters,
     ) -> Vec3 {
         let (u_choice, u_select, u) = (rng.next_f32(), rng.next_f32(), rng.next_vec2());
+        // The light chosen and its point pdf (per steradian, before selection), for learning.
+        let mut chosen: Option<(u32, f32)> = None;
         let (wi, emitted, light_pdf, distance) = if u_choice < self.environment_choice {
             let Some(environment) = &self.scene.environment else { return Vec3::ZERO };
             let Some(s) = environment.sample(u) else { return Vec3::ZERO };
             (s.wi, s.radiance, self.environment_choice * s.pdf, f32::INFINITY)
         } else {
-            let Some(s) = self.scene.lights.sample(&self.scene.triangles, point, u_select, u) else {
+            let Some((light, probability)) = self.select_light(point, u_select) else { return Vec3::ZERO };
+            let Some(s) = self.scene.lights.sample_point(light, &self.scene.triangles, point, u) else {
+                self.learn_light(point, light, 0.0, false);
                 return Vec3::ZERO;
             };
-            (s.wi, s.radiance, (1.0 - self.environment_choice) * s.pdf, s.distance)
+            chosen = Some((light, s.pdf));
+            (s.wi, s.radiance, (1.0 - self.environment_choice) * probability * s.pdf, s.distance)
         };
         if !(light_pdf.is_finite() && light_pdf > 0.0) || emitted == Vec3::ZERO {
             return Vec3::ZERO;
         }
         let f = material.eval(shading, wo, wi);
         if f == Vec3::ZERO {
+            if let Some((light, _)) = chosen {
+                self.learn_light(point, light, 0.0, false);
+            }
             return Vec3::ZERO;
         }
         let origin = self.spawn(point, geometric_normal, wi);
@@ -479,11 +567,25 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
             f32::INFINITY
         };
         counters.rays += 1;
-        if self.intersector.occluded(&Ray::segment(origin, wi, 0.0, t_max)) {
+        let occluded = self.intersector.occluded(&Ray::segment(origin, wi, 0.0, t_max));
+        if let Some((light, point_pdf)) = chosen {
+            // Eq. (3)'s ‖C‖∞: the unshadowed contribution of the whole light.
+            self.learn_light(point, light, (f * emitted / point_pdf).max_element(), !occluded);
+        }
+        if occluded {
             return Vec3::ZERO;
         }
         let weight = power_heuristic(light_pdf, self.scatter_pdf(material, shading, wo, wi, distribution, clock));
         f * emitted * (weight / light_pdf)
+    }
+
+    /// Teaches the light guide (if lights are selected as learned) one shadow ray.
+    fn learn_light(&self, point: Vec3, light: u32, contribution: f32, unoccluded: bool) {
+        if let Some(guide) = self.light_guide {
+            if let Some(cell) = guide.cell(point) {
+                guide.update(cell, light, contribution, unoccluded);
+            }
+        }
     }
 
     /// Applies Eq. (1) along a finished path, last vertex first. Rejected targets are

@@ -16,7 +16,7 @@ pub struct LightSample {
     pub distance: f32,
     /// Emitted radiance towards the shading point (zero from the back face).
     pub radiance: Vec3,
-    /// Density of `wi` per steradian, including the choice of this light.
+    /// Density of `wi` per steradian (for the light it was drawn on).
     pub pdf: f32,
 }
 
@@ -63,13 +63,32 @@ impl AreaLights {
         self.triangles.is_empty()
     }
 
-    /// Picks a light by power and a point on it uniformly by area.
-    pub fn sample(&self, triangles: &[Triangle], from: Vec3, u_select: f32, u: Vec2) -> Option<LightSample> {
-        if self.is_empty() {
-            return None;
-        }
-        let (light, _) = sample_cdf(&self.cdf, u_select);
-        let triangle = &triangles[self.triangles[light] as usize];
+    /// Power of each light (luminance × area), in light order.
+    pub fn powers(&self) -> Vec<f32> {
+        self.emission.iter().zip(&self.areas).map(|(&e, &a)| luminance(e) * a).collect()
+    }
+
+    /// Picks a light in proportion to power: its index and probability.
+    pub fn select_by_power(&self, u: f32) -> (u32, f32) {
+        let (light, _) = sample_cdf(&self.cdf, u);
+        (light as u32, cdf_probability(&self.cdf, light))
+    }
+
+    /// The probability [`select_by_power`](Self::select_by_power) gives `light`.
+    pub fn power_probability(&self, light: u32) -> f32 {
+        cdf_probability(&self.cdf, light as usize)
+    }
+
+    /// The light index of a scene triangle, if it emits.
+    pub fn light_of_triangle(&self, triangle: u32) -> Option<u32> {
+        self.light_of_triangle.get(triangle as usize).copied().filter(|&l| l != u32::MAX)
+    }
+
+    /// A point drawn uniformly on `light`, seen from `from`; its pdf is per steradian for
+    /// that light alone (multiply by the light's selection probability).
+    pub fn sample_point(&self, light: u32, triangles: &[Triangle], from: Vec3, u: Vec2) -> Option<LightSample> {
+        let light = light as usize;
+        let triangle = &triangles[*self.triangles.get(light)? as usize];
         let point = triangle.point(square_to_triangle_barycentrics(u));
         let normal = triangle.normal()?;
         let to_light = point - from;
@@ -83,24 +102,19 @@ impl AreaLights {
         if cos_light <= 0.0 {
             return None;
         }
-        let pdf = cdf_probability(&self.cdf, light) / self.areas[light] * distance2 / cos_light;
+        let pdf = distance2 / (cos_light * self.areas[light]);
         Some(LightSample { wi, distance, radiance: self.emission[light], pdf })
     }
 
-    /// Density per steradian with which [`sample`](Self::sample) produces the direction
-    /// from `from` to point `point` on scene triangle `triangle` (normal `normal`).
-    pub fn pdf(&self, triangle: u32, from: Vec3, point: Vec3, normal: Vec3) -> f32 {
-        let Some(&light) = self.light_of_triangle.get(triangle as usize) else { return 0.0 };
-        if light == u32::MAX {
-            return 0.0;
-        }
+    /// Density per steradian with which [`sample_point`](Self::sample_point) produces the
+    /// direction from `from` to `point` on `light` (normal `normal`).
+    pub fn point_pdf(&self, light: u32, from: Vec3, point: Vec3, normal: Vec3) -> f32 {
         let to_light = point - from;
         let distance2 = to_light.length_squared();
         let cos_light = -normal.dot(to_light) / distance2.sqrt();
         if cos_light <= 0.0 {
             return 0.0;
         }
-        let light = light as usize;
-        cdf_probability(&self.cdf, light) / self.areas[light] * distance2 / cos_light
+        distance2 / (cos_light * self.areas[light as usize])
     }
 }

@@ -5,10 +5,10 @@
 use std::time::Instant;
 
 use glam::Vec3;
-use guiding_core::{Guide, HemisphereGrid, Intersector, Pcg32};
+use guiding_core::{Guide, HemisphereGrid, Intersector, LightGuide, Pcg32};
 use rayon::prelude::*;
 
-use crate::integrator::{IntegratorSettings, PathCounters, PathScratch, PathTracer};
+use crate::integrator::{IntegratorSettings, LightSelection, PathCounters, PathScratch, PathTracer};
 use crate::output::Image;
 use crate::scene::Scene;
 
@@ -85,6 +85,7 @@ pub fn render<I: Intersector>(
     scene: &Scene,
     intersector: &I,
     mut guide: Option<&mut HemisphereGrid>,
+    mut light_guide: Option<&mut LightGuide>,
     settings: &RenderSettings,
     mut on_pass: impl FnMut(&Progress<'_>),
 ) -> (Image, RenderStatistics) {
@@ -94,7 +95,7 @@ pub fn render<I: Intersector>(
     let start = Instant::now();
     loop {
         let pass = statistics.passes;
-        let tracer = PathTracer::new(scene, intersector, guide.as_deref(), settings.integrator);
+        let tracer = PathTracer::new(scene, intersector, guide.as_deref(), light_guide.as_deref(), settings.integrator);
         let pass_seed = settings.seed ^ (pass as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15);
         // Rows come back in order, so the pass sum is added up in the same order on every
         // run: renders that do not learn are reproducible to the last bit.
@@ -126,15 +127,22 @@ pub fn render<I: Intersector>(
         statistics.pass_means.push(pass_sum.map(|s| s / pixels));
         statistics.counters = statistics.counters + counters;
         statistics.passes += 1;
+        let rebuild = Instant::now();
         if settings.integrator.method.uses_guide() {
             if let Some(guide) = guide.as_deref_mut() {
-                let rebuild = Instant::now();
                 guide.rebuild_sampling();
-                statistics.guide_rebuild_seconds += rebuild.elapsed().as_secs_f64();
             }
         }
+        if settings.integrator.light_selection == LightSelection::Learned {
+            if let Some(light_guide) = light_guide.as_deref_mut() {
+                light_guide.rebuild();
+            }
+        }
+        statistics.guide_rebuild_seconds += rebuild.elapsed().as_secs_f64();
         let seconds = start.elapsed().as_secs_f64();
-        if settings.integrator.method.uses_guide() && seconds < settings.train_seconds {
+        let learns =
+            settings.integrator.method.uses_guide() || settings.integrator.light_selection == LightSelection::Learned;
+        if learns && seconds < settings.train_seconds {
             film.iter_mut().for_each(|p| *p = [0.0; 3]);
             statistics.pass_means.clear();
             statistics.passes = 0;

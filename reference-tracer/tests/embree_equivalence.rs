@@ -111,6 +111,7 @@ fn cornell_renders_the_same_with_either_intersector() {
             &prepared.scene,
             &prepared.intersector,
             prepared.guide.as_mut(),
+            None,
             &settings,
             |_| {},
         );

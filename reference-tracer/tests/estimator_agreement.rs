@@ -1,11 +1,12 @@
-//! The estimators agree: a white furnace converges to Le/(1-ρ) under every integrator,
-//! and on the Cornell box pt, nee and guided (every update rule) give per-image means
-//! within 4 standard errors of each other, the errors taken from per-pass image means.
+//! The estimators agree: a white furnace converges to Le/(1-ρ) under every integrator and
+//! light selection; on the Cornell box pt, nee and guided (every update rule) give
+//! per-image means within 4 standard errors of each other, and on many_lights uniform,
+//! power and learned light selection do; the errors are taken from per-pass image means.
 
 mod support;
 
 use guiding_core::{HemisphereGridSettings, IntegralEstimator, LearningRate, UpdateRule};
-use reference_tracer::integrator::Method;
+use reference_tracer::integrator::{LightSelection, Method};
 use serde_json::json;
 use support::{mean_estimate, render_scene, settings};
 
@@ -44,9 +45,17 @@ fn white_furnace_converges_to_le_over_one_minus_albedo() {
     let (emission, albedo) = (0.5f32, 0.6f32);
     let expected = emission as f64 / (1.0 - albedo as f64);
     let scene = furnace_scene(emission, albedo);
-    for method in Method::ALL {
+    // Every method with power selection, and next-event estimation with uniform and
+    // learned selection among the furnace's twelve emitting triangles.
+    let cases = Method::ALL
+        .into_iter()
+        .map(|m| (m, LightSelection::Power))
+        .chain([(Method::Nee, LightSelection::Uniform), (Method::Nee, LightSelection::Learned)])
+        .chain([(Method::GuidedNee, LightSelection::Learned)]);
+    for (method, light_selection) in cases {
         // Deep paths, no early roulette bias: the furnace needs many bounces.
-        let integrator = reference_tracer::integrator::IntegratorSettings { max_depth: 64, ..settings(method) };
+        let integrator =
+            reference_tracer::integrator::IntegratorSettings { max_depth: 64, light_selection, ..settings(method) };
         let statistics = render_scene(
             &scene,
             integrator,
@@ -58,7 +67,7 @@ fn white_furnace_converges_to_le_over_one_minus_albedo() {
         let tolerance = 4.0 * estimate.standard_error;
         assert!(
             (estimate.mean - expected).abs() <= tolerance,
-            "{}: {} ± {} vs Le/(1-ρ) = {expected}",
+            "{} {light_selection:?}: {} ± {} vs Le/(1-ρ) = {expected}",
             method.name(),
             estimate.mean,
             estimate.standard_error
@@ -119,6 +128,26 @@ fn cornell_means_agree_across_integrators_and_update_rules() {
 #[test]
 fn door_means_agree_across_integrators_and_update_rules() {
     assert_means_agree(&support::repository_scene("door", 32, 24), 600, 256, 512);
+}
+
+#[test]
+fn many_lights_means_agree_across_light_selections() {
+    let scene = support::repository_scene("many_lights", 32, 24);
+    let with =
+        |light_selection| reference_tracer::integrator::IntegratorSettings { light_selection, ..settings(Method::Nee) };
+    let reference = mean_estimate(&render_scene(&scene, with(LightSelection::Power), None, 128, 31));
+    for (i, selection) in [LightSelection::Uniform, LightSelection::Learned].into_iter().enumerate() {
+        let estimate = mean_estimate(&render_scene(&scene, with(selection), None, 128, 40 + i as u64));
+        let combined = (estimate.standard_error.powi(2) + reference.standard_error.powi(2)).sqrt();
+        assert!(
+            (estimate.mean - reference.mean).abs() <= 4.0 * combined,
+            "{selection:?}: {} ± {} vs power {} ± {}",
+            estimate.mean,
+            estimate.standard_error,
+            reference.mean,
+            reference.standard_error
+        );
+    }
 }
 
 #[test]

@@ -3,8 +3,9 @@
 
 use std::path::{Path, PathBuf};
 
-use reference_tracer::cli::prepare;
-use reference_tracer::integrator::{IntegratorSettings, Method};
+use guiding_core::LightGuideSettings;
+use reference_tracer::cli::prepare_with_lights;
+use reference_tracer::integrator::{IntegratorSettings, LightSelection, Method};
 use reference_tracer::output::Image;
 use reference_tracer::render::{render, Budget, RenderSettings, RenderStatistics};
 use reference_tracer::scene_intersector::IntersectorChoice;
@@ -82,10 +83,12 @@ pub fn render_image(
     spp: u32,
     seed: u64,
 ) -> (Image, RenderStatistics) {
-    let mut prepared = prepare(scene, IntersectorChoice::default(), guide).unwrap();
+    // Learned light selection gets a light guide with the default settings.
+    let light_guide = (integrator.light_selection == LightSelection::Learned).then(LightGuideSettings::default);
+    let mut prepared = prepare_with_lights(scene, IntersectorChoice::default(), guide, light_guide).unwrap();
     let settings = RenderSettings { integrator, budget: Budget::SamplesPerPixel(spp), seed, train_seconds: 0.0 };
     let guide = prepared.guide.as_mut();
-    render(&prepared.scene, &prepared.intersector, guide, &settings, |_| {})
+    render(&prepared.scene, &prepared.intersector, guide, prepared.light_guide.as_mut(), &settings, |_| {})
 }
 
 pub fn settings(method: Method) -> IntegratorSettings {

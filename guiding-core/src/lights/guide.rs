@@ -1,0 +1,364 @@
+//! [`LightGuide`]: per grid cell, a learned importance V per light and a selection CDF.
+
+use core::sync::atomic::{AtomicU32, AtomicUsize, Ordering};
+
+use alloc::vec;
+use alloc::vec::Vec;
+use glam::{IVec3, Vec3};
+
+use crate::atomic_f32;
+use crate::cdf::{build_cdf, cdf_probability, sample_cdf};
+use crate::error::Error;
+use crate::update_rule::{blend, classify_target, UpdateOutcome};
+
+use super::settings::{LightGuideSettings, LightUpdateRule, ENTRY_BYTES, MAX_LIGHTS};
+
+/// A cell of a [`LightGuide`]'s grid: the region [`LightGuide::cell`] returns.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct LightCell(pub u32);
+
+/// A selected light and the probability it had (exactly what
+/// [`LightGuide::probability`] reports for it).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LightChoice {
+    /// Index of the light, in the order of the powers the guide was built with.
+    pub light: u32,
+    /// Its selection probability in the cell, > 0.
+    pub probability: f32,
+}
+
+/// Learned light selection for next-event estimation: a regular grid over the scene,
+/// and in each cell c a value V(c, l) per light l learned from shadow rays (Eq. 3 of
+/// Dahm & Keller), mixed with power-proportional and uniform shares.
+///
+/// ```
+/// use guiding_core::{LightGuide, LightGuideSettings};
+/// use glam::Vec3;
+///
+/// // Two equal lights; from this corner of the scene only light 1 is ever visible.
+/// let mut guide = LightGuide::new(Vec3::ZERO, Vec3::ONE, &[1.0, 1.0], LightGuideSettings::default())?;
+/// let cell = guide.cell(Vec3::splat(0.1)).expect("inside the bounds");
+/// for _ in 0..100 {
+///     guide.update(cell, 0, 0.0, false);
+///     guide.update(cell, 1, 2.0, true);
+/// }
+/// guide.rebuild();
+/// assert!(guide.probability(cell, 1) > 0.85);
+/// assert!(guide.probability(cell, 0) > 0.0); // never zero
+/// let choice = guide.select(cell, 0.5);
+/// assert_eq!(choice.probability, guide.probability(cell, choice.light));
+/// # Ok::<(), guiding_core::Error>(())
+/// ```
+#[derive(Debug)]
+pub struct LightGuide {
+    settings: LightGuideSettings,
+    low: Vec3,
+    inverse_cell_size: Vec3,
+    /// Cells per axis (i32: glam's unsigned vectors are not built here).
+    resolution: IVec3,
+    lights: usize,
+    /// Normalised power of each light.
+    power_share: Vec<f32>,
+    /// Per (cell, light): V (f32 bits), updates taken, shadow rays shot.
+    values: Vec<AtomicU32>,
+    updates: Vec<AtomicU32>,
+    shots: Vec<AtomicU32>,
+    /// Per (cell, light): the selection CDF of the last rebuild.
+    cdf: Vec<f32>,
+    rejected: AtomicUsize,
+}
+
+impl LightGuide {
+    /// A guide over the box `low..high` (scene units) for lights of the given powers
+    /// (any consistent unit, e.g. luminance × area; all zero means equal).
+    pub fn new(low: Vec3, high: Vec3, powers: &[f32], settings: LightGuideSettings) -> Result<Self, Error> {
+        settings.validate()?;
+        let invalid = |name, value: f64, requirement| Err(Error::InvalidSetting { name, value, requirement });
+        if powers.is_empty() || powers.len() > MAX_LIGHTS {
+            return invalid("light_count", powers.len() as f64, "in 1..=2^20");
+        }
+        if let Some(&p) = powers.iter().find(|p| !(p.is_finite() && **p >= 0.0)) {
+            return invalid("light_powers", p as f64, "finite and non-negative");
+        }
+        if !(low.is_finite() && high.is_finite() && low.cmple(high).all()) {
+            return invalid("bounds", (high - low).min_element() as f64, "finite with low ≤ high");
+        }
+        let lights = powers.len();
+        let per_cell = lights * ENTRY_BYTES;
+        let resolution = match settings.resolution {
+            Some(r) => IVec3::new(r[0] as i32, r[1] as i32, r[2] as i32),
+            None => {
+                let cells = settings.budget_bytes / per_cell;
+                if cells == 0 {
+                    return Err(Error::BudgetTooSmall { budget_bytes: settings.budget_bytes, needed_bytes: per_cell });
+                }
+                resolution_for(high - low, cells.min(1 << 24))
+            }
+        };
+        let cells = (resolution.x * resolution.y * resolution.z) as usize;
+        let needed = cells * per_cell;
+        if needed > settings.budget_bytes {
+            return Err(Error::OverBudget {
+                regions: cells,
+                needed_bytes: needed,
+                budget_bytes: settings.budget_bytes,
+            });
+        }
+        let total: f64 = powers.iter().map(|&p| p as f64).sum();
+        let power_share =
+            powers.iter().map(|&p| if total > 0.0 { (p as f64 / total) as f32 } else { 1.0 / lights as f32 }).collect();
+        // Degenerate (flat) extents get cells of the largest extent's size.
+        let extent = (high - low).max(Vec3::splat((high - low).max_element().max(f32::MIN_POSITIVE) * 1e-6));
+        let entries = cells * lights;
+        let mut guide = Self {
+            settings,
+            low,
+            inverse_cell_size: resolution.as_vec3() / extent,
+            resolution,
+            lights,
+            power_share,
+            values: (0..entries).map(|_| atomic_f32::new(0.0)).collect(),
+            updates: (0..entries).map(|_| AtomicU32::new(0)).collect(),
+            shots: (0..entries).map(|_| AtomicU32::new(0)).collect(),
+            cdf: vec![0.0; entries],
+            rejected: AtomicUsize::new(0),
+        };
+        guide.rebuild();
+        Ok(guide)
+    }
+
+    /// The cell holding `position`; points outside the bounds use the nearest cell.
+    /// `None` for a non-finite position.
+    pub fn cell(&self, position: Vec3) -> Option<LightCell> {
+        if !position.is_finite() {
+            return None;
+        }
+        let c = ((position - self.low) * self.inverse_cell_size).max(Vec3::ZERO).as_ivec3().min(self.resolution - 1);
+        Some(LightCell(((c.z * self.resolution.y + c.y) * self.resolution.x + c.x) as u32))
+    }
+
+    fn row(&self, cell: LightCell) -> core::ops::Range<usize> {
+        let start = cell.0 as usize * self.lights;
+        start..start + self.lights
+    }
+
+    /// Picks a light by the cell's CDF from a uniform number in [0, 1).
+    pub fn select(&self, cell: LightCell, u: f32) -> LightChoice {
+        let cdf = &self.cdf[self.row(cell)];
+        let (light, _) = sample_cdf(cdf, u);
+        LightChoice { light: light as u32, probability: cdf_probability(cdf, light) }
+    }
+
+    /// The probability with which [`select`](Self::select) picks `light` in `cell`.
+    pub fn probability(&self, cell: LightCell, light: u32) -> f32 {
+        if light as usize >= self.lights {
+            return 0.0;
+        }
+        cdf_probability(&self.cdf[self.row(cell)], light as usize)
+    }
+
+    /// Learns from one shadow ray from `cell` to `light`: `unoccluded` says whether it
+    /// arrived, `contribution` is ‖C‖∞ of the unshadowed contribution (radiance, the
+    /// light's whole area: divide by the pdf of the point chosen on it). NaN, infinite
+    /// and negative contributions are rejected and counted.
+    pub fn update(&self, cell: LightCell, light: u32, contribution: f32, unoccluded: bool) -> UpdateOutcome {
+        if light as usize >= self.lights {
+            return UpdateOutcome::OutsideDomain;
+        }
+        let contribution = match classify_target(contribution) {
+            Ok(c) => c,
+            Err(rejected) => {
+                self.rejected.fetch_add(1, Ordering::Relaxed);
+                return rejected;
+            }
+        };
+        let index = self.row(cell).start + light as usize;
+        atomic_f32::increment_saturating(&self.shots[index]);
+        let learn = |target: f32| {
+            let n = atomic_f32::increment_saturating(&self.updates[index]);
+            let alpha = (1.0 / (1.0 + n as f64)) as f32;
+            atomic_f32::update(&self.values[index], |v| blend(v, target, alpha, 0.0));
+        };
+        match (self.settings.rule, unoccluded) {
+            (LightUpdateRule::UnoccludedAverage, true) => learn(contribution),
+            (LightUpdateRule::MeanContribution, _) => learn(if unoccluded { contribution } else { 0.0 }),
+            (LightUpdateRule::VisibilityRatio, true) => {
+                atomic_f32::increment_saturating(&self.updates[index]);
+            }
+            _ => {}
+        }
+        UpdateOutcome::Accepted
+    }
+
+    /// Rebuilds every cell's selection CDF from what it learned: probability
+    /// (1 - power_mix - uniform_mix)·V/ΣV + power_mix·power share + uniform_mix/lights
+    /// (cells that learned nothing yet use power and uniform shares alone). Call between
+    /// passes.
+    pub fn rebuild(&mut self) {
+        let (power_mix, uniform_mix) = (self.settings.power_mix as f64, self.settings.uniform_mix as f64);
+        let mut learned = vec![0.0f64; self.lights];
+        for cell in 0..self.cell_count() {
+            let row = self.row(LightCell(cell as u32));
+            for (l, value) in learned.iter_mut().enumerate() {
+                let i = row.start + l;
+                *value = match self.settings.rule {
+                    LightUpdateRule::VisibilityRatio => {
+                        let (hits, shots) =
+                            (self.updates[i].load(Ordering::Relaxed), self.shots[i].load(Ordering::Relaxed));
+                        (hits as f64 + 1.0) / (shots as f64 + 2.0) * self.power_share[l] as f64
+                    }
+                    _ => atomic_f32::load(&self.values[i]) as f64,
+                };
+            }
+            let total: f64 = learned.iter().sum();
+            let learned_mix = if total > 0.0 { 1.0 - power_mix - uniform_mix } else { 0.0 };
+            let power_mix = 1.0 - uniform_mix - learned_mix;
+            let weight = |l: usize| {
+                let share = if total > 0.0 { learned[l] / total } else { 0.0 };
+                (learned_mix * share + power_mix * self.power_share[l] as f64 + uniform_mix / self.lights as f64) as f32
+            };
+            build_cdf(&mut self.cdf[row], 0.0, weight);
+        }
+    }
+
+    /// Cells along x, y and z.
+    pub fn resolution(&self) -> [u32; 3] {
+        self.resolution.to_array().map(|n| n as u32)
+    }
+
+    /// Number of cells.
+    pub fn cell_count(&self) -> usize {
+        (self.resolution.x * self.resolution.y * self.resolution.z) as usize
+    }
+
+    /// Number of lights.
+    pub fn light_count(&self) -> usize {
+        self.lights
+    }
+
+    /// Bytes held by the tables.
+    pub fn memory_bytes(&self) -> usize {
+        self.cell_count() * self.lights * ENTRY_BYTES + self.lights * 4 + core::mem::size_of::<Self>()
+    }
+
+    /// Contributions rejected for being NaN, infinite or negative.
+    pub fn rejected_updates(&self) -> usize {
+        self.rejected.load(Ordering::Relaxed)
+    }
+
+    /// The settings it was built with.
+    pub fn settings(&self) -> &LightGuideSettings {
+        &self.settings
+    }
+}
+
+/// Near-cubic cells: as many as `cells` allows over `extent`, at least one per axis.
+fn resolution_for(extent: Vec3, cells: usize) -> IVec3 {
+    let largest = extent.max_element();
+    if largest.is_nan() || largest <= 0.0 {
+        return IVec3::ONE;
+    }
+    let extent = extent.max(Vec3::splat(largest * 1e-3));
+    let volume = extent.x as f64 * extent.y as f64 * extent.z as f64;
+    let mut side = libm::cbrt(volume / cells as f64);
+    loop {
+        let r = IVec3::new(
+            libm::floor(extent.x as f64 / side).clamp(1.0, 1024.0) as i32,
+            libm::floor(extent.y as f64 / side).clamp(1.0, 1024.0) as i32,
+            libm::floor(extent.z as f64 / side).clamp(1.0, 1024.0) as i32,
+        );
+        if (r.x as usize) * (r.y as usize) * (r.z as usize) <= cells {
+            return r;
+        }
+        side *= 1.05;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::low_discrepancy::Pcg32;
+    use crate::validation::discrete_chi_square;
+
+    fn guide(powers: &[f32], settings: LightGuideSettings) -> LightGuide {
+        LightGuide::new(Vec3::ZERO, Vec3::new(4.0, 2.0, 1.0), powers, settings).unwrap()
+    }
+
+    #[test]
+    fn sampling_matches_the_probabilities_by_chi_square() {
+        let powers: Vec<f32> = (0..40).map(|i| 1.0 + (i % 7) as f32 * 3.0).collect();
+        let mut g = guide(&powers, LightGuideSettings::default());
+        let cell = g.cell(Vec3::new(1.0, 1.0, 0.5)).unwrap();
+        let mut rng = Pcg32::new(4, 4);
+        for _ in 0..10_000 {
+            let light = rng.next_u32() % 40;
+            g.update(cell, light, (light % 5) as f32 * rng.next_f32(), rng.next_f32() < 0.5);
+        }
+        g.rebuild();
+        let probabilities: Vec<f64> = (0..40).map(|l| g.probability(cell, l) as f64).collect();
+        assert!((probabilities.iter().sum::<f64>() - 1.0).abs() < 1e-6);
+        let mut observed = vec![0u64; 40];
+        for _ in 0..1_000_000 {
+            let choice = g.select(cell, rng.next_f32());
+            assert_eq!(choice.probability, g.probability(cell, choice.light));
+            observed[choice.light as usize] += 1;
+        }
+        let report = discrete_chi_square(&probabilities, &observed, 5.0);
+        assert!(report.passes(0.01), "{report:?}");
+        // A deliberately wrong claim fails.
+        let mut wrong = probabilities.clone();
+        wrong.swap(0, 39);
+        wrong.swap(1, 38);
+        assert!(!discrete_chi_square(&wrong, &observed, 5.0).passes(0.01));
+    }
+
+    #[test]
+    fn occluded_lights_fade_but_never_reach_zero() {
+        for rule in
+            [LightUpdateRule::UnoccludedAverage, LightUpdateRule::MeanContribution, LightUpdateRule::VisibilityRatio]
+        {
+            let mut g = guide(&[1.0, 1.0, 1.0], LightGuideSettings { rule, ..Default::default() });
+            let cell = g.cell(Vec3::ONE).unwrap();
+            for _ in 0..1000 {
+                g.update(cell, 0, 1.0, false);
+                g.update(cell, 1, 1.0, true);
+                g.update(cell, 2, 0.1, true);
+            }
+            g.rebuild();
+            let p: Vec<f32> = (0..3).map(|l| g.probability(cell, l)).collect();
+            assert!(p[1] > p[0] && p.iter().all(|&x| x > 0.0), "{rule:?}: {p:?}");
+            // Other cells learned nothing: power and uniform shares only.
+            let far = g.cell(Vec3::new(3.9, 0.1, 0.1)).unwrap();
+            assert_ne!(far, cell);
+            let q = g.probability(far, 0);
+            assert!((q - 1.0 / 3.0).abs() < 1e-6, "{q}");
+        }
+    }
+
+    #[test]
+    fn bad_input_is_rejected_and_counted() {
+        let g = guide(&[1.0, 2.0], LightGuideSettings::default());
+        let cell = g.cell(Vec3::ONE).unwrap();
+        assert_eq!(g.update(cell, 0, f32::NAN, true), UpdateOutcome::RejectedNonFinite);
+        assert_eq!(g.update(cell, 0, -1.0, true), UpdateOutcome::RejectedNegative);
+        assert_eq!(g.update(cell, 9, 1.0, true), UpdateOutcome::OutsideDomain);
+        assert_eq!(g.rejected_updates(), 2);
+        assert_eq!(g.cell(Vec3::NAN), None);
+        assert_eq!(g.cell(Vec3::splat(-1e30)), Some(LightCell(0)));
+        assert_eq!(g.probability(cell, 9), 0.0);
+        let error = |powers: &[f32], settings| LightGuide::new(Vec3::ZERO, Vec3::ONE, powers, settings).unwrap_err();
+        assert!(matches!(error(&[], Default::default()), Error::InvalidSetting { name: "light_count", .. }));
+        assert!(matches!(error(&[f32::NAN], Default::default()), Error::InvalidSetting { name: "light_powers", .. }));
+        let tiny = LightGuideSettings { budget_bytes: 8, ..Default::default() };
+        assert!(matches!(error(&[1.0], tiny), Error::BudgetTooSmall { .. }));
+    }
+
+    #[test]
+    fn the_budget_sets_the_resolution_and_is_kept() {
+        let settings = LightGuideSettings { budget_bytes: 64 << 10, ..Default::default() };
+        let g = guide(&[1.0; 16], settings);
+        let [x, y, z] = g.resolution();
+        assert!(x >= y && y >= z && x * y * z >= 128, "{x}×{y}×{z}");
+        assert!(g.cell_count() * 16 * ENTRY_BYTES <= settings.budget_bytes);
+    }
+}
