@@ -98,6 +98,9 @@ struct ReferenceArgs {
     /// Any unbiased integrator; guided-nee converges fastest on hard scenes.
     #[arg(long, default_value = "nee", value_parser = parse_method)]
     integrator: Method,
+    /// Light selection (learned converges fastest with many occluded lights).
+    #[arg(long, default_value = "power", value_parser = LightSelection::from_name)]
+    light_selection: LightSelection,
     /// Output image (.exr).
     #[arg(long)]
     out: PathBuf,
@@ -602,8 +605,15 @@ fn run_reference(args: &ReferenceArgs) -> Result<(), String> {
     }
     let pool = thread_pool(args.threads)?;
     let guide = args.integrator.uses_guide().then(HemisphereGridSettings::default);
-    let mut prepared = prepare(&args.scene, IntersectorChoice::default(), guide)?;
-    let integrator = IntegratorSettings { method: args.integrator, ..Default::default() };
+    let learned = args.light_selection == LightSelection::Learned;
+    let mut prepared = prepare_with_lights(
+        &args.scene,
+        IntersectorChoice::default(),
+        guide,
+        learned.then(LightGuideSettings::default),
+    )?;
+    let integrator =
+        IntegratorSettings { method: args.integrator, light_selection: args.light_selection, ..Default::default() };
     let settings =
         RenderSettings { integrator, budget: Budget::SamplesPerPixel(args.spp), seed: args.seed, train_seconds: 0.0 };
     let (image, statistics, _) = pool.install(|| render_prepared(&mut prepared, &settings, None, &[], true));

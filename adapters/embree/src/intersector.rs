@@ -172,11 +172,13 @@ impl EmbreeIntersector {
         self.scene
     }
 
+    #[inline]
     fn is_valid(ray: &Ray) -> bool {
         ray.origin.is_finite() && ray.direction.is_finite() && ray.direction != Vec3::ZERO && ray.t_min < ray.t_max
     }
 
     /// Embree accepts `tnear ≤ t ≤ tfar`; the trait asks for `t_min < t < t_max`.
+    #[inline]
     fn embree_ray(ray: &Ray) -> sys::RTCRay {
         let below = |t: f32| if t.is_finite() && t > 0.0 { f32::from_bits(t.to_bits() - 1) } else { t };
         let above = |t: f32| if t.is_finite() && t > 0.0 { f32::from_bits(t.to_bits() + 1) } else { t };
@@ -198,6 +200,7 @@ impl EmbreeIntersector {
 }
 
 impl Intersector for EmbreeIntersector {
+    #[inline]
     fn intersect(&self, ray: &Ray) -> Option<Hit> {
         if !Self::is_valid(ray) || self.original_index.is_empty() {
             return None;
@@ -223,6 +226,7 @@ impl Intersector for EmbreeIntersector {
         })
     }
 
+    #[inline]
     fn occluded(&self, ray: &Ray) -> bool {
         if !Self::is_valid(ray) || self.original_index.is_empty() {
             return false;

@@ -184,6 +184,7 @@ fn power_of_two(k: i32) -> f32 {
 }
 
 impl Intersector for ObvhsIntersector {
+    #[inline]
     fn intersect(&self, ray: &Ray) -> Option<Hit> {
         if !Self::is_valid(ray) {
             return None;
@@ -220,6 +221,7 @@ impl Intersector for ObvhsIntersector {
         best.map(|(primitive, hit)| Hit { t: hit.t / self.scale, primitive, barycentrics: hit.barycentrics })
     }
 
+    #[inline]
     fn occluded(&self, ray: &Ray) -> bool {
         if !Self::is_valid(ray) {
             return false;
