@@ -15,6 +15,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use crate::integrator::{IntegratorSettings, LightSelection, Method};
 use crate::metrics::{image_error, ImageError};
 use crate::output::{read_image, write_exr, write_pfm, write_png, Image};
+use crate::plan::GuidePlan;
 use crate::render::{render, Budget, RenderSettings, RenderStatistics};
 use crate::scene::Scene;
 
@@ -172,9 +173,10 @@ pub struct TraceOptions {
     /// Ray tracing library: obvhs (CWBVH), obvhs-bvh2, or embree (needs the `embree` feature).
     #[arg(long, default_value = "obvhs", value_parser = IntersectorChoice::from_name)]
     intersector: IntersectorChoice,
-    /// Next-event light selection: uniform, power, or learned (Eq. 3, per grid cell).
-    #[arg(long, default_value = "power", value_parser = LightSelection::from_name)]
-    light_selection: LightSelection,
+    /// Next-event light selection: auto (learned with many lights, else power; see the
+    /// printed plan), uniform, power, or learned (Eq. 3, per grid cell).
+    #[arg(long, default_value = "auto", value_parser = parse_light_selection)]
+    light_selection: SelectionChoice,
     /// Learned selection's rule: mean (occluded rays count as zero), unoccluded (the seed's
     /// Eq. 3: only arriving rays), or visibility (arrived / shot, times power).
     #[arg(long, default_value = "mean", value_parser = parse_light_rule)]
@@ -182,6 +184,19 @@ pub struct TraceOptions {
     /// Learned selection's memory budget, MiB.
     #[arg(long, default_value_t = 1.0)]
     light_guide_mib: f64,
+}
+
+/// `--light-selection`: a choice, or `None` for auto (the plan decides). A newtype, as
+/// clap reads a bare `Option` field as "may be absent".
+#[derive(Clone, Copy, Debug)]
+struct SelectionChoice(Option<LightSelection>);
+
+fn parse_light_selection(s: &str) -> Result<SelectionChoice, String> {
+    if s == "auto" {
+        Ok(SelectionChoice(None))
+    } else {
+        LightSelection::from_name(s).map(|selection| SelectionChoice(Some(selection)))
+    }
 }
 
 fn parse_compared_method(s: &str) -> Result<(Method, Option<LightSelection>), String> {
@@ -261,29 +276,26 @@ impl TraceOptions {
         Ok(settings)
     }
 
-    fn integrator(&self, method: Method) -> IntegratorSettings {
+    fn integrator(&self, method: Method, plan: &GuidePlan) -> IntegratorSettings {
         IntegratorSettings {
             method,
             max_depth: self.max_depth.max(1),
             rr_depth: self.rr_depth,
             guide_probability: self.p_guide,
             learn: true,
-            light_selection: self.light_selection,
+            light_selection: plan.light_selection,
         }
     }
 
-    /// The light guide's settings when lights are selected as learned.
-    fn light_guide_settings(&self) -> Result<Option<LightGuideSettings>, String> {
-        if self.light_selection != LightSelection::Learned {
-            return Ok(None);
-        }
+    /// What to build for light selection under `method`.
+    fn light_request(&self, method: Method) -> Result<LightRequest, String> {
         if !(self.light_guide_mib.is_finite() && self.light_guide_mib > 0.0) {
             return Err(format!("--light-guide-mib {} must be positive", self.light_guide_mib));
         }
         let budget_bytes = (self.light_guide_mib * (1 << 20) as f64) as usize;
         let settings = LightGuideSettings { budget_bytes, rule: self.light_rule, ..Default::default() };
         settings.validate().map_err(|e| e.to_string())?;
-        Ok(Some(settings))
+        Ok(LightRequest { selection: self.light_selection.0, settings, next_event_estimation: method.uses_nee() })
     }
 }
 
@@ -306,8 +318,10 @@ pub struct Prepared {
     pub intersector: SceneIntersector,
     /// The guide, for guided methods.
     pub guide: Option<HemisphereGrid>,
-    /// The learned light selection, when asked for and the scene has area lights.
+    /// The learned light selection, when the plan asks for it and the scene has area lights.
     pub light_guide: Option<LightGuide>,
+    /// What was built and why.
+    pub plan: GuidePlan,
     /// Set-up timings.
     pub times: SetupTimes,
 }
@@ -318,16 +332,32 @@ pub fn prepare(
     intersector: IntersectorChoice,
     guide: Option<HemisphereGridSettings>,
 ) -> Result<Prepared, String> {
-    prepare_with_lights(path, intersector, guide, None)
+    let power = LightRequest {
+        selection: Some(LightSelection::Power),
+        settings: LightGuideSettings::default(),
+        next_event_estimation: true,
+    };
+    prepare_with_lights(path, intersector, guide, power)
 }
 
-/// [`prepare`], plus a light guide over the scene's bounds when `light_guide` is given
-/// and the scene has area lights.
+/// How lights are to be selected: a choice, or `None` for the plan to decide.
+#[derive(Clone, Copy, Debug)]
+pub struct LightRequest {
+    /// The selection asked for; `None` lets the [`GuidePlan`] decide.
+    pub selection: Option<LightSelection>,
+    /// The light guide's settings, if one is built.
+    pub settings: LightGuideSettings,
+    /// Whether the method samples lights at all (no light guide otherwise).
+    pub next_event_estimation: bool,
+}
+
+/// [`prepare`], with light selection planned from the scene: a light guide over the
+/// scene's bounds is built when the plan selects lights as learned.
 pub fn prepare_with_lights(
     path: &Path,
     intersector: IntersectorChoice,
     guide: Option<HemisphereGridSettings>,
-    light_guide: Option<LightGuideSettings>,
+    lights: LightRequest,
 ) -> Result<Prepared, String> {
     let start = Instant::now();
     let scene = Scene::load(path).map_err(|e| e.to_string())?;
@@ -340,8 +370,13 @@ pub fn prepare_with_lights(
         Some(settings) => Some(HemisphereGrid::build(&scene.triangles, settings).map_err(|e| format!("guide: {e}"))?),
         None => None,
     };
-    let light_guide = match light_guide {
-        Some(settings) if !scene.lights.is_empty() => {
+    let plan = GuidePlan::new(&scene, guide.is_some(), lights.next_event_estimation, lights.selection);
+    let light_guide = match lights.settings {
+        settings
+            if plan.light_selection == LightSelection::Learned
+                && lights.next_event_estimation
+                && !scene.lights.is_empty() =>
+        {
             let (low, high) = scene
                 .triangles
                 .iter()
@@ -355,7 +390,7 @@ pub fn prepare_with_lights(
         _ => None,
     };
     let times = SetupTimes { load, bvh: bvh_seconds, guide: start.elapsed().as_secs_f64() };
-    Ok(Prepared { scene, intersector, guide, light_guide, times })
+    Ok(Prepared { scene, intersector, guide, light_guide, plan, times })
 }
 
 fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool, String> {
@@ -551,11 +586,12 @@ fn run_render(args: &RenderArgs) -> Result<(), String> {
         &args.scene,
         options.intersector,
         args.integrator.uses_guide().then_some(guide_settings),
-        options.light_guide_settings()?,
+        options.light_request(args.integrator)?,
     )?;
     for warning in &prepared.scene.warnings {
         eprintln!("warning: {}: {warning}", args.scene.display());
     }
+    eprintln!("plan: {}", prepared.plan.describe());
     if let Some(reference) = &reference {
         let camera = &prepared.scene.camera;
         if (reference.width, reference.height) != (camera.width as usize, camera.height as usize) {
@@ -566,7 +602,7 @@ fn run_render(args: &RenderArgs) -> Result<(), String> {
         }
     }
     let settings = RenderSettings {
-        integrator: options.integrator(args.integrator),
+        integrator: options.integrator(args.integrator, &prepared.plan),
         budget,
         seed: options.seed,
         train_seconds: options.train_seconds,
@@ -605,13 +641,12 @@ fn run_reference(args: &ReferenceArgs) -> Result<(), String> {
     }
     let pool = thread_pool(args.threads)?;
     let guide = args.integrator.uses_guide().then(HemisphereGridSettings::default);
-    let learned = args.light_selection == LightSelection::Learned;
-    let mut prepared = prepare_with_lights(
-        &args.scene,
-        IntersectorChoice::default(),
-        guide,
-        learned.then(LightGuideSettings::default),
-    )?;
+    let lights = LightRequest {
+        selection: Some(args.light_selection),
+        settings: LightGuideSettings::default(),
+        next_event_estimation: args.integrator.uses_nee(),
+    };
+    let mut prepared = prepare_with_lights(&args.scene, IntersectorChoice::default(), guide, lights)?;
     let integrator =
         IntegratorSettings { method: args.integrator, light_selection: args.light_selection, ..Default::default() };
     let settings =
@@ -649,7 +684,7 @@ fn run_compare(args: &CompareArgs) -> Result<(), String> {
     let mut names = Vec::new();
     for &(method, selection) in &args.methods {
         let mut options = options.clone();
-        options.light_selection = selection.unwrap_or(options.light_selection);
+        options.light_selection = SelectionChoice(selection.or(options.light_selection.0));
         let name = match selection {
             Some(selection) => format!("{}:{}", method.name(), selection.name()),
             None => method.name().to_string(),
@@ -658,8 +693,9 @@ fn run_compare(args: &CompareArgs) -> Result<(), String> {
             &args.scene,
             options.intersector,
             method.uses_guide().then_some(guide_settings),
-            options.light_guide_settings()?,
+            options.light_request(method)?,
         )?;
+        eprintln!("{name}: plan: {}", prepared.plan.describe());
         let camera = &prepared.scene.camera;
         if (reference.width, reference.height) != (camera.width as usize, camera.height as usize) {
             return Err(format!(
@@ -669,7 +705,7 @@ fn run_compare(args: &CompareArgs) -> Result<(), String> {
         }
         eprintln!("{name}: rendering {} s", args.seconds);
         let settings = RenderSettings {
-            integrator: options.integrator(method),
+            integrator: options.integrator(method, &prepared.plan),
             budget: Budget::Seconds(args.seconds),
             seed: options.seed,
             train_seconds: options.train_seconds,

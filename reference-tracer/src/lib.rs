@@ -16,6 +16,7 @@ pub mod lights;
 pub mod material;
 pub mod metrics;
 pub mod output;
+pub mod plan;
 pub mod render;
 pub mod report;
 pub mod sampling;

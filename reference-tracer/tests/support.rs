@@ -4,8 +4,8 @@
 use std::path::{Path, PathBuf};
 
 use guiding_core::LightGuideSettings;
-use reference_tracer::cli::prepare_with_lights;
-use reference_tracer::integrator::{IntegratorSettings, LightSelection, Method};
+use reference_tracer::cli::{prepare_with_lights, LightRequest};
+use reference_tracer::integrator::{IntegratorSettings, Method};
 use reference_tracer::output::Image;
 use reference_tracer::render::{render, Budget, RenderSettings, RenderStatistics};
 use reference_tracer::scene_intersector::IntersectorChoice;
@@ -84,8 +84,12 @@ pub fn render_image(
     seed: u64,
 ) -> (Image, RenderStatistics) {
     // Learned light selection gets a light guide with the default settings.
-    let light_guide = (integrator.light_selection == LightSelection::Learned).then(LightGuideSettings::default);
-    let mut prepared = prepare_with_lights(scene, IntersectorChoice::default(), guide, light_guide).unwrap();
+    let lights = LightRequest {
+        selection: Some(integrator.light_selection),
+        settings: LightGuideSettings::default(),
+        next_event_estimation: integrator.method.uses_nee(),
+    };
+    let mut prepared = prepare_with_lights(scene, IntersectorChoice::default(), guide, lights).unwrap();
     let settings = RenderSettings { integrator, budget: Budget::SamplesPerPixel(spp), seed, train_seconds: 0.0 };
     let guide = prepared.guide.as_mut();
     render(&prepared.scene, &prepared.intersector, guide, prepared.light_guide.as_mut(), &settings, |_| {})

@@ -1,0 +1,56 @@
+//! The guide plan builds what a scene needs and nothing else: no light guide for a scene
+//! with one lamp, or for a method without next-event estimation; a learned one for 64
+//! lights; no directional guide for unguided methods; nothing for an absent environment.
+
+use std::path::Path;
+
+use guiding_core::{HemisphereGridSettings, LightGuideSettings};
+use reference_tracer::cli::{prepare_with_lights, LightRequest};
+use reference_tracer::integrator::{LightSelection, Method};
+use reference_tracer::scene_intersector::IntersectorChoice;
+
+fn plan(scene: &str, method: Method, selection: Option<LightSelection>) -> reference_tracer::cli::Prepared {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes").join(scene).join("scene.json");
+    let guide = method.uses_guide().then(|| HemisphereGridSettings { budget_bytes: 64 << 10, ..Default::default() });
+    let lights =
+        LightRequest { selection, settings: LightGuideSettings::default(), next_event_estimation: method.uses_nee() };
+    prepare_with_lights(&path, IntersectorChoice::default(), guide, lights).unwrap()
+}
+
+#[test]
+fn one_lamp_gets_power_selection_and_no_light_guide() {
+    let prepared = plan("cornell", Method::Nee, None);
+    assert_eq!(prepared.plan.light_selection, LightSelection::Power);
+    assert!(prepared.light_guide.is_none() && prepared.guide.is_none());
+    assert!(prepared.plan.describe().contains("environment: none"), "{}", prepared.plan.describe());
+}
+
+#[test]
+fn sixty_four_lights_get_a_learned_light_guide() {
+    let prepared = plan("many_lights", Method::Nee, None);
+    assert_eq!(prepared.plan.light_selection, LightSelection::Learned);
+    let guide = prepared.light_guide.as_ref().expect("a light guide");
+    assert_eq!(guide.light_count(), prepared.scene.lights.len());
+    assert!(guide.memory_bytes() <= LightGuideSettings::default().budget_bytes + 64 * 1024);
+}
+
+#[test]
+fn methods_without_next_event_estimation_build_no_light_guide() {
+    for method in [Method::Pt, Method::Guided] {
+        let prepared = plan("many_lights", method, None);
+        assert!(prepared.light_guide.is_none(), "{method:?}");
+        assert_eq!(prepared.guide.is_some(), method.uses_guide());
+    }
+    // Asked for explicitly, it is still not built where nothing would use it.
+    assert!(plan("many_lights", Method::Pt, Some(LightSelection::Learned)).light_guide.is_none());
+}
+
+#[test]
+fn an_explicit_choice_overrides_the_plan() {
+    let prepared = plan("many_lights", Method::Nee, Some(LightSelection::Uniform));
+    assert_eq!(prepared.plan.light_selection, LightSelection::Uniform);
+    assert!(prepared.light_guide.is_none());
+    let prepared = plan("window", Method::GuidedNee, None);
+    assert!(prepared.plan.describe().contains("environment: importance-sampled"));
+    assert!(prepared.guide.is_some());
+}
