@@ -353,6 +353,36 @@ mod tests {
         assert!(matches!(error(&[1.0], tiny), Error::BudgetTooSmall { .. }));
     }
 
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
+        /// Whatever the powers (zeros, 1e-30 beside 1e30) and whatever was learned, every
+        /// light keeps a positive selection probability in every cell, and they sum to one.
+        #[test]
+        fn no_light_is_ever_at_zero_probability(
+            powers in proptest::collection::vec(proptest::prop_oneof![
+                proptest::prelude::Just(0.0f32), 1e-30f32..1e-20, 0.0f32..10.0, 1e20f32..1e30], 1..300),
+            updates in proptest::collection::vec((0u32..300, 0.0f32..1e30, proptest::bool::ANY), 0..200),
+            rule in 0usize..3,
+        ) {
+            let rule = [LightUpdateRule::UnoccludedAverage, LightUpdateRule::MeanContribution, LightUpdateRule::VisibilityRatio][rule];
+            let settings = LightGuideSettings { resolution: Some([2, 1, 1]), budget_bytes: 1 << 20, rule, ..Default::default() };
+            let mut g = guide(&powers, settings);
+            let cell = g.cell(Vec3::ZERO).unwrap();
+            for &(light, contribution, unoccluded) in &updates {
+                g.update(cell, light % powers.len() as u32, contribution, unoccluded);
+            }
+            g.rebuild();
+            for c in 0..g.cell_count() as u32 {
+                let total: f64 = (0..powers.len() as u32).map(|l| {
+                    let p = g.probability(LightCell(c), l);
+                    proptest::prop_assert!(p > 0.0, "cell {c}, light {l}: {p}");
+                    Ok(p as f64)
+                }).sum::<Result<f64, _>>()?;
+                proptest::prop_assert!((total - 1.0).abs() < 1e-6, "cell {c}: {total}");
+            }
+        }
+    }
+
     #[test]
     fn the_budget_sets_the_resolution_and_is_kept() {
         let settings = LightGuideSettings { budget_bytes: 64 << 10, ..Default::default() };
