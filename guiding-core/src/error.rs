@@ -106,6 +106,17 @@ pub enum DecodeError {
     },
 }
 
+/// `Ok` when `ok`, else [`Error::InvalidSetting`] naming the setting: the check every
+/// settings `validate` is made of.
+#[cfg_attr(not(any(feature = "hemisphere", feature = "lights")), allow(dead_code))]
+pub(crate) fn require(ok: bool, name: &'static str, value: f64, requirement: &'static str) -> Result<(), Error> {
+    if ok {
+        Ok(())
+    } else {
+        Err(Error::InvalidSetting { name, value, requirement })
+    }
+}
+
 impl fmt::Display for Error {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {

@@ -118,13 +118,5 @@ fn cornell_renders_the_same_with_either_intersector() {
         support::mean_estimate(&statistics)
     };
     let (obvhs, embree) = (render(IntersectorChoice::default()), render(IntersectorChoice::Embree));
-    let error = (obvhs.standard_error.powi(2) + embree.standard_error.powi(2)).sqrt();
-    assert!(
-        (obvhs.mean - embree.mean).abs() <= 4.0 * error,
-        "obvhs {} ± {}, Embree {} ± {}",
-        obvhs.mean,
-        obvhs.standard_error,
-        embree.mean,
-        embree.standard_error
-    );
+    support::assert_agree("obvhs vs Embree", &obvhs, &embree);
 }

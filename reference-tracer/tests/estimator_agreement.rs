@@ -108,15 +108,7 @@ fn assert_means_agree(scene: &std::path::Path, probes: usize, spp: u32, referenc
         });
         let spp = if method == Method::Pt { 4 * spp } else { spp };
         let estimate = mean_estimate(&render_scene(scene, settings(method), guide, spp, 100 + i as u64));
-        let combined = (estimate.standard_error.powi(2) + reference.standard_error.powi(2)).sqrt();
-        assert!(
-            (estimate.mean - reference.mean).abs() <= 4.0 * combined,
-            "{name}: {} ± {} vs nee {} ± {}",
-            estimate.mean,
-            estimate.standard_error,
-            reference.mean,
-            reference.standard_error
-        );
+        support::assert_agree(&format!("{name} vs nee"), &estimate, &reference);
     }
 }
 
@@ -138,15 +130,7 @@ fn many_lights_means_agree_across_light_selections() {
     let reference = mean_estimate(&render_scene(&scene, with(LightSelection::Power), None, 128, 31));
     for (i, selection) in [LightSelection::Uniform, LightSelection::Learned].into_iter().enumerate() {
         let estimate = mean_estimate(&render_scene(&scene, with(selection), None, 128, 40 + i as u64));
-        let combined = (estimate.standard_error.powi(2) + reference.standard_error.powi(2)).sqrt();
-        assert!(
-            (estimate.mean - reference.mean).abs() <= 4.0 * combined,
-            "{selection:?}: {} ± {} vs power {} ± {}",
-            estimate.mean,
-            estimate.standard_error,
-            reference.mean,
-            reference.standard_error
-        );
+        support::assert_agree(&format!("{selection:?} vs power"), &estimate, &reference);
     }
 }
 

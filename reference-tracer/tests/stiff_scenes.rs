@@ -14,7 +14,7 @@ use reference_tracer::integrator::Method;
 use reference_tracer::output::{write_pfm, Image};
 use reference_tracer::scene::Scene;
 use serde_json::{json, Value};
-use support::{mean_estimate, render_image, render_scene, settings, MeanEstimate};
+use support::{assert_agree, mean_estimate, render_image, render_scene, settings, MeanEstimate};
 
 fn guide_settings() -> Option<HemisphereGridSettings> {
     Some(HemisphereGridSettings { budget_bytes: 256 << 10, ..Default::default() })
@@ -24,18 +24,6 @@ fn estimate(scene: &Path, method: Method, spp: u32, seed: u64) -> MeanEstimate {
     let statistics = render_scene(scene, settings(method), guide_settings(), spp, seed);
     assert!(statistics.pass_means.iter().flatten().all(|v| v.is_finite()), "{method:?}: non-finite pass mean");
     mean_estimate(&statistics)
-}
-
-fn assert_agree(label: &str, a: &MeanEstimate, b: &MeanEstimate) {
-    let error = (a.standard_error.powi(2) + b.standard_error.powi(2)).sqrt();
-    assert!(
-        (a.mean - b.mean).abs() <= 4.0 * error,
-        "{label}: {} ± {} vs {} ± {}",
-        a.mean,
-        a.standard_error,
-        b.mean,
-        b.standard_error
-    );
 }
 
 /// The repository's Cornell box at 24 × 24 pixels, edited, in a folder of its own.

@@ -56,6 +56,19 @@ pub struct MeanEstimate {
     pub standard_error: f64,
 }
 
+/// Panics unless the two estimates agree within 4 combined standard errors.
+pub fn assert_agree(label: &str, a: &MeanEstimate, b: &MeanEstimate) {
+    let error = (a.standard_error.powi(2) + b.standard_error.powi(2)).sqrt();
+    assert!(
+        (a.mean - b.mean).abs() <= 4.0 * error,
+        "{label}: {} ± {} vs {} ± {}",
+        a.mean,
+        a.standard_error,
+        b.mean,
+        b.standard_error
+    );
+}
+
 pub fn mean_estimate(statistics: &RenderStatistics) -> MeanEstimate {
     let values: Vec<f64> = statistics.pass_means.iter().map(|m| (m[0] + m[1] + m[2]) / 3.0).collect();
     let n = values.len() as f64;

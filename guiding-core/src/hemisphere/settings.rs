@@ -1,6 +1,6 @@
 //! Configuration of a [`HemisphereGrid`](super::HemisphereGrid) and its memory sizing.
 
-use crate::error::Error;
+use crate::error::{require, Error};
 use crate::update_rule::UpdateRule;
 
 use super::mapping::PatchLayout;
@@ -68,13 +68,7 @@ impl HemisphereGridSettings {
     pub fn validate(&self) -> Result<(), Error> {
         self.layout.validate()?;
         self.update_rule.validate()?;
-        let check = |ok: bool, name: &'static str, value: f64, requirement: &'static str| {
-            if ok {
-                Ok(())
-            } else {
-                Err(Error::InvalidSetting { name, value, requirement })
-            }
-        };
+        let check = require;
         check(self.budget_bytes > 0, "budget_bytes", self.budget_bytes as f64, "positive")?;
         if let Some(count) = self.probe_count {
             check(count >= 1, "probe_count", count as f64, "at least 1")?;

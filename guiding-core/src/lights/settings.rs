@@ -1,6 +1,6 @@
 //! Configuration of a [`LightGuide`](super::LightGuide).
 
-use crate::error::Error;
+use crate::error::{require, Error};
 
 /// How V(c, l) learns from next-event shadow rays.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -57,13 +57,7 @@ pub(crate) const ENTRY_BYTES: usize = 16;
 impl LightGuideSettings {
     /// Checks every setting's range.
     pub fn validate(&self) -> Result<(), Error> {
-        let check = |ok: bool, name: &'static str, value: f64, requirement: &'static str| {
-            if ok {
-                Ok(())
-            } else {
-                Err(Error::InvalidSetting { name, value, requirement })
-            }
-        };
+        let check = require;
         check(self.budget_bytes > 0, "budget_bytes", self.budget_bytes as f64, "positive")?;
         if let Some(r) = self.resolution {
             for (axis, &n) in r.iter().enumerate() {
