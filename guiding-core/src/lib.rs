@@ -5,11 +5,13 @@
 extern crate alloc;
 
 // Shared by every guide structure; a build with none of them compiled in leaves them unused.
-#[cfg_attr(not(feature = "hemisphere"), allow(dead_code))]
+#[cfg_attr(not(any(feature = "hemisphere", feature = "lights", feature = "env")), allow(dead_code))]
 mod atomic_f32;
 #[cfg_attr(not(feature = "hemisphere"), allow(dead_code))]
 mod bytes;
 pub mod cdf;
+#[cfg(any(feature = "lights", feature = "env"))]
+mod cell_grid;
 mod distribution;
 mod error;
 mod frame;
@@ -21,6 +23,8 @@ mod scattering;
 mod update_rule;
 pub mod validation;
 
+#[cfg(feature = "env")]
+pub mod environment;
 #[cfg(feature = "hemisphere")]
 pub mod hemisphere;
 #[cfg(feature = "lights")]
@@ -39,6 +43,8 @@ pub use low_discrepancy::{hammersley, radical_inverse_base2, Pcg32};
 pub use scattering::{Lambertian, ScatteringFunction};
 pub use update_rule::{blend, classify_target, IntegralEstimator, LearningRate, UpdateOutcome, UpdateRule};
 
+#[cfg(feature = "env")]
+pub use environment::{EnvTileGuide, EnvTileGuideSettings};
 #[cfg(feature = "hemisphere")]
 pub use hemisphere::{HemisphereGrid, HemisphereGridSettings, HemisphereMapping, PatchLayout, ProbeId, ProbeSet};
 #[cfg(feature = "lights")]

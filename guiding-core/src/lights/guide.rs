@@ -4,10 +4,11 @@ use core::sync::atomic::{AtomicU32, AtomicUsize, Ordering};
 
 use alloc::vec;
 use alloc::vec::Vec;
-use glam::{IVec3, Vec3};
+use glam::Vec3;
 
 use crate::atomic_f32;
 use crate::cdf::{build_cdf, cdf_probability, sample_cdf};
+use crate::cell_grid::CellGrid;
 use crate::error::Error;
 use crate::update_rule::{blend, classify_target, UpdateOutcome};
 
@@ -52,10 +53,7 @@ pub struct LightChoice {
 #[derive(Debug)]
 pub struct LightGuide {
     settings: LightGuideSettings,
-    low: Vec3,
-    inverse_cell_size: Vec3,
-    /// Cells per axis (i32: glam's unsigned vectors are not built here).
-    resolution: IVec3,
+    grid: CellGrid,
     lights: usize,
     /// Normalised power of each light.
     power_share: Vec<f32>,
@@ -80,41 +78,15 @@ impl LightGuide {
         if let Some(&p) = powers.iter().find(|p| !(p.is_finite() && **p >= 0.0)) {
             return invalid("light_powers", p as f64, "finite and non-negative");
         }
-        if !(low.is_finite() && high.is_finite() && low.cmple(high).all()) {
-            return invalid("bounds", (high - low).min_element() as f64, "finite with low ≤ high");
-        }
         let lights = powers.len();
-        let per_cell = lights * ENTRY_BYTES;
-        let resolution = match settings.resolution {
-            Some(r) => IVec3::new(r[0] as i32, r[1] as i32, r[2] as i32),
-            None => {
-                let cells = settings.budget_bytes / per_cell;
-                if cells == 0 {
-                    return Err(Error::BudgetTooSmall { budget_bytes: settings.budget_bytes, needed_bytes: per_cell });
-                }
-                resolution_for(high - low, cells.min(1 << 24))
-            }
-        };
-        let cells = (resolution.x * resolution.y * resolution.z) as usize;
-        let needed = cells * per_cell;
-        if needed > settings.budget_bytes {
-            return Err(Error::OverBudget {
-                regions: cells,
-                needed_bytes: needed,
-                budget_bytes: settings.budget_bytes,
-            });
-        }
+        let grid = CellGrid::new(low, high, settings.resolution, settings.budget_bytes, lights * ENTRY_BYTES)?;
+        let entries = grid.cell_count() * lights;
         let total: f64 = powers.iter().map(|&p| p as f64).sum();
         let power_share =
             powers.iter().map(|&p| if total > 0.0 { (p as f64 / total) as f32 } else { 1.0 / lights as f32 }).collect();
-        // Degenerate (flat) extents get cells of the largest extent's size.
-        let extent = (high - low).max(Vec3::splat((high - low).max_element().max(f32::MIN_POSITIVE) * 1e-6));
-        let entries = cells * lights;
         let mut guide = Self {
             settings,
-            low,
-            inverse_cell_size: resolution.as_vec3() / extent,
-            resolution,
+            grid,
             lights,
             power_share,
             values: (0..entries).map(|_| atomic_f32::new(0.0)).collect(),
@@ -130,11 +102,7 @@ impl LightGuide {
     /// The cell holding `position`; points outside the bounds use the nearest cell.
     /// `None` for a non-finite position.
     pub fn cell(&self, position: Vec3) -> Option<LightCell> {
-        if !position.is_finite() {
-            return None;
-        }
-        let c = ((position - self.low) * self.inverse_cell_size).max(Vec3::ZERO).as_ivec3().min(self.resolution - 1);
-        Some(LightCell(((c.z * self.resolution.y + c.y) * self.resolution.x + c.x) as u32))
+        self.grid.cell(position).map(LightCell)
     }
 
     fn row(&self, cell: LightCell) -> core::ops::Range<usize> {
@@ -223,12 +191,12 @@ impl LightGuide {
 
     /// Cells along x, y and z.
     pub fn resolution(&self) -> [u32; 3] {
-        self.resolution.to_array().map(|n| n as u32)
+        self.grid.resolution()
     }
 
     /// Number of cells.
     pub fn cell_count(&self) -> usize {
-        (self.resolution.x * self.resolution.y * self.resolution.z) as usize
+        self.grid.cell_count()
     }
 
     /// Number of lights.
@@ -249,28 +217,6 @@ impl LightGuide {
     /// The settings it was built with.
     pub fn settings(&self) -> &LightGuideSettings {
         &self.settings
-    }
-}
-
-/// Near-cubic cells: as many as `cells` allows over `extent`, at least one per axis.
-fn resolution_for(extent: Vec3, cells: usize) -> IVec3 {
-    let largest = extent.max_element();
-    if largest.is_nan() || largest <= 0.0 {
-        return IVec3::ONE;
-    }
-    let extent = extent.max(Vec3::splat(largest * 1e-3));
-    let volume = extent.x as f64 * extent.y as f64 * extent.z as f64;
-    let mut side = libm::cbrt(volume / cells as f64);
-    loop {
-        let r = IVec3::new(
-            libm::floor(extent.x as f64 / side).clamp(1.0, 1024.0) as i32,
-            libm::floor(extent.y as f64 / side).clamp(1.0, 1024.0) as i32,
-            libm::floor(extent.z as f64 / side).clamp(1.0, 1024.0) as i32,
-        );
-        if (r.x as usize) * (r.y as usize) * (r.z as usize) <= cells {
-            return r;
-        }
-        side *= 1.05;
     }
 }
 

@@ -1,5 +1,6 @@
 //! Configuration of a [`LightGuide`](super::LightGuide).
 
+use crate::cell_grid::validate_resolution;
 use crate::error::{require, Error};
 
 /// How V(c, l) learns from next-event shadow rays.
@@ -59,12 +60,7 @@ impl LightGuideSettings {
     pub fn validate(&self) -> Result<(), Error> {
         let check = require;
         check(self.budget_bytes > 0, "budget_bytes", self.budget_bytes as f64, "positive")?;
-        if let Some(r) = self.resolution {
-            for (axis, &n) in r.iter().enumerate() {
-                let name = ["resolution.x", "resolution.y", "resolution.z"][axis];
-                check((1..=1024).contains(&n), name, n as f64, "in 1..=1024")?;
-            }
-        }
+        validate_resolution(self.resolution)?;
         let power = self.power_mix;
         check((0.0..=1.0).contains(&power), "power_mix", power as f64, "in [0, 1]")?;
         let uniform = self.uniform_mix;
