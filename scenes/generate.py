@@ -134,7 +134,11 @@ def window_scene():
                    "fov_y_deg": 60.0, "width": 320, "height": 240},
         "materials": {"white": {"type": "diffuse", "albedo": [0.7, 0.7, 0.7]}},
         "shapes": shapes,
-        "environment": {"type": "image", "file": "../envmaps/venice_sunset_1k.hdr", "scale": 1.0},
+        # A low sun in the window's direction: it reaches a patch of the floor and the box
+        # through the window and is hidden from everywhere else.
+        "environment": {"type": "image", "file": "../envmaps/venice_sunset_1k.hdr", "scale": 1.0,
+                        "sun": {"direction": [0.25, 0.6, -1.0], "angular_radius_deg": 0.5,
+                                "radiance": [2600.0, 2200.0, 1700.0]}},
     }
 
 

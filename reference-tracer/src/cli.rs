@@ -6,17 +6,18 @@ use std::time::Instant;
 use crate::scene_intersector::{IntersectorChoice, SceneIntersector};
 use clap::{Args, Parser, Subcommand};
 use glam::Vec3;
+use guiding_core::environment::EnvironmentTiles;
 use guiding_core::{
-    Guide, HemisphereGrid, HemisphereGridSettings, HemisphereMapping, IntegralEstimator, LearningRate, LightGuide,
-    LightGuideSettings, LightUpdateRule, PatchLayout, UpdateRule,
+    EnvTileGuide, EnvTileGuideSettings, Guide, HemisphereGrid, HemisphereGridSettings, HemisphereMapping,
+    IntegralEstimator, LearningRate, LightGuide, LightGuideSettings, LightUpdateRule, PatchLayout, UpdateRule,
 };
 use indicatif::{ProgressBar, ProgressStyle};
 
-use crate::integrator::{IntegratorSettings, LightSelection, Method};
+use crate::integrator::{EnvironmentSampling, IntegratorSettings, LightSelection, Method};
 use crate::metrics::{image_error, ImageError};
 use crate::output::{read_image, write_exr, write_pfm, write_png, Image};
 use crate::plan::GuidePlan;
-use crate::render::{render, Budget, RenderSettings, RenderStatistics};
+use crate::render::{render, Budget, Learners, RenderSettings, RenderStatistics};
 use crate::scene::Scene;
 
 /// Lodestar: path guiding by reinforcement learning.
@@ -44,9 +45,10 @@ struct CompareArgs {
     /// The scene file (scene.json).
     scene: PathBuf,
     /// Comma-separated methods, e.g. pt,nee,guided,guided-nee; a method may name its
-    /// light selection, e.g. nee:uniform,nee:power,nee:learned (else --light-selection).
+    /// light selection, e.g. nee:uniform,nee:power,nee:learned (else --light-selection),
+    /// and its environment sampling, e.g. nee+luminance,nee+tiles (else --env-sampling).
     #[arg(long, value_delimiter = ',', value_parser = parse_compared_method, required = true)]
-    methods: Vec<(Method, Option<LightSelection>)>,
+    methods: Vec<ComparedMethod>,
     /// Wall-clock seconds per method.
     #[arg(long)]
     seconds: f64,
@@ -102,6 +104,9 @@ struct ReferenceArgs {
     /// Light selection (learned converges fastest with many occluded lights).
     #[arg(long, default_value = "power", value_parser = LightSelection::from_name)]
     light_selection: LightSelection,
+    /// Environment sampling (tiles converges fastest where most of the sky is hidden).
+    #[arg(long, default_value = "luminance", value_parser = EnvironmentSampling::from_name)]
+    env_sampling: EnvironmentSampling,
     /// Output image (.exr).
     #[arg(long)]
     out: PathBuf,
@@ -184,6 +189,31 @@ pub struct TraceOptions {
     /// Learned selection's memory budget, MiB.
     #[arg(long, default_value_t = 1.0)]
     light_guide_mib: f64,
+    /// Next-event environment sampling: auto (tiles when there is an environment; see the
+    /// printed plan), luminance (plain importance sampling), or tiles (learned per cell).
+    #[arg(long, default_value = "auto", value_parser = parse_environment_sampling)]
+    env_sampling: EnvironmentChoice,
+    /// Environment tiles across × down the lat-long map, e.g. 16x8.
+    #[arg(long, default_value = "16x8", value_parser = parse_patches)]
+    env_tiles: [u32; 2],
+    /// Share of each cell's tile probability kept in proportion to power, in [0, 1).
+    #[arg(long, default_value_t = 0.2)]
+    env_power_mix: f32,
+    /// Environment-tile guide's memory budget for its per-cell tables, MiB.
+    #[arg(long, default_value_t = 1.0)]
+    env_guide_mib: f64,
+}
+
+/// `--env-sampling`: a choice, or `None` for auto (the plan decides).
+#[derive(Clone, Copy, Debug)]
+struct EnvironmentChoice(Option<EnvironmentSampling>);
+
+fn parse_environment_sampling(s: &str) -> Result<EnvironmentChoice, String> {
+    if s == "auto" {
+        Ok(EnvironmentChoice(None))
+    } else {
+        EnvironmentSampling::from_name(s).map(|sampling| EnvironmentChoice(Some(sampling)))
+    }
 }
 
 /// `--light-selection`: a choice, or `None` for auto (the plan decides). A newtype, as
@@ -199,11 +229,33 @@ fn parse_light_selection(s: &str) -> Result<SelectionChoice, String> {
     }
 }
 
-fn parse_compared_method(s: &str) -> Result<(Method, Option<LightSelection>), String> {
-    match s.split_once(':') {
-        Some((method, selection)) => Ok((parse_method(method)?, Some(LightSelection::from_name(selection)?))),
-        None => Ok((parse_method(s)?, None)),
+/// One method of `compare`: METHOD[:LIGHT_SELECTION][+ENVIRONMENT_SAMPLING].
+#[derive(Clone, Copy, Debug)]
+struct ComparedMethod {
+    method: Method,
+    selection: Option<LightSelection>,
+    environment: Option<EnvironmentSampling>,
+}
+
+impl ComparedMethod {
+    /// The name it was given (and its output files take).
+    fn name(&self) -> String {
+        let selection = self.selection.map(|s| format!(":{}", s.name())).unwrap_or_default();
+        let environment = self.environment.map(|e| format!("+{}", e.name())).unwrap_or_default();
+        format!("{}{selection}{environment}", self.method.name())
     }
+}
+
+fn parse_compared_method(s: &str) -> Result<ComparedMethod, String> {
+    let (rest, environment) = match s.split_once('+') {
+        Some((rest, environment)) => (rest, Some(EnvironmentSampling::from_name(environment)?)),
+        None => (s, None),
+    };
+    let (method, selection) = match rest.split_once(':') {
+        Some((method, selection)) => (parse_method(method)?, Some(LightSelection::from_name(selection)?)),
+        None => (parse_method(rest)?, None),
+    };
+    Ok(ComparedMethod { method, selection, environment })
 }
 
 fn parse_light_rule(s: &str) -> Result<LightUpdateRule, String> {
@@ -284,6 +336,7 @@ impl TraceOptions {
             guide_probability: self.p_guide,
             learn: true,
             light_selection: plan.light_selection,
+            environment_sampling: plan.environment_sampling,
         }
     }
 
@@ -295,7 +348,23 @@ impl TraceOptions {
         let budget_bytes = (self.light_guide_mib * (1 << 20) as f64) as usize;
         let settings = LightGuideSettings { budget_bytes, rule: self.light_rule, ..Default::default() };
         settings.validate().map_err(|e| e.to_string())?;
-        Ok(LightRequest { selection: self.light_selection.0, settings, next_event_estimation: method.uses_nee() })
+        if !(self.env_guide_mib.is_finite() && self.env_guide_mib > 0.0) {
+            return Err(format!("--env-guide-mib {} must be positive", self.env_guide_mib));
+        }
+        let environment_settings = EnvTileGuideSettings {
+            budget_bytes: (self.env_guide_mib * (1 << 20) as f64) as usize,
+            tiles: self.env_tiles,
+            power_mix: self.env_power_mix,
+            ..Default::default()
+        };
+        environment_settings.validate().map_err(|e| format!("environment guide: {e}"))?;
+        Ok(LightRequest {
+            selection: self.light_selection.0,
+            settings,
+            environment: self.env_sampling.0,
+            environment_settings,
+            next_event_estimation: method.uses_nee(),
+        })
     }
 }
 
@@ -320,6 +389,9 @@ pub struct Prepared {
     pub guide: Option<HemisphereGrid>,
     /// The learned light selection, when the plan asks for it and the scene has area lights.
     pub light_guide: Option<LightGuide>,
+    /// The learned environment sampling, when the plan asks for it and the scene has an
+    /// environment.
+    pub environment_guide: Option<EnvTileGuide>,
     /// What was built and why.
     pub plan: GuidePlan,
     /// Set-up timings.
@@ -332,27 +404,46 @@ pub fn prepare(
     intersector: IntersectorChoice,
     guide: Option<HemisphereGridSettings>,
 ) -> Result<Prepared, String> {
-    let power = LightRequest {
-        selection: Some(LightSelection::Power),
-        settings: LightGuideSettings::default(),
-        next_event_estimation: true,
-    };
-    prepare_with_lights(path, intersector, guide, power)
+    let plain = LightRequest::new(Some(LightSelection::Power), Some(EnvironmentSampling::Luminance), true);
+    prepare_with_lights(path, intersector, guide, plain)
 }
 
-/// How lights are to be selected: a choice, or `None` for the plan to decide.
+/// How lights and the environment are to be sampled: choices, or `None` for the plan
+/// to decide.
 #[derive(Clone, Copy, Debug)]
 pub struct LightRequest {
     /// The selection asked for; `None` lets the [`GuidePlan`] decide.
     pub selection: Option<LightSelection>,
     /// The light guide's settings, if one is built.
     pub settings: LightGuideSettings,
+    /// The environment sampling asked for; `None` lets the [`GuidePlan`] decide.
+    pub environment: Option<EnvironmentSampling>,
+    /// The environment-tile guide's settings, if one is built.
+    pub environment_settings: EnvTileGuideSettings,
     /// Whether the method samples lights at all (no light guide otherwise).
     pub next_event_estimation: bool,
 }
 
-/// [`prepare`], with light selection planned from the scene: a light guide over the
-/// scene's bounds is built when the plan selects lights as learned.
+impl LightRequest {
+    /// `selection` and `environment` asked for (or `None`: planned), default settings.
+    pub fn new(
+        selection: Option<LightSelection>,
+        environment: Option<EnvironmentSampling>,
+        next_event_estimation: bool,
+    ) -> Self {
+        Self {
+            selection,
+            settings: LightGuideSettings::default(),
+            environment,
+            environment_settings: EnvTileGuideSettings::default(),
+            next_event_estimation,
+        }
+    }
+}
+
+/// [`prepare`], with light and environment sampling planned from the scene: a light
+/// guide over the scene's bounds is built when the plan selects lights as learned, an
+/// environment-tile guide when it samples the environment by tiles.
 pub fn prepare_with_lights(
     path: &Path,
     intersector: IntersectorChoice,
@@ -370,18 +461,19 @@ pub fn prepare_with_lights(
         Some(settings) => Some(HemisphereGrid::build(&scene.triangles, settings).map_err(|e| format!("guide: {e}"))?),
         None => None,
     };
-    let plan = GuidePlan::new(&scene, guide.is_some(), lights.next_event_estimation, lights.selection);
+    let plan =
+        GuidePlan::new(&scene, guide.is_some(), lights.next_event_estimation, lights.selection, lights.environment);
+    let (low, high) = scene
+        .triangles
+        .iter()
+        .flat_map(|t| t.vertices)
+        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(l, h), v| (l.min(v), h.max(v)));
     let light_guide = match lights.settings {
         settings
             if plan.light_selection == LightSelection::Learned
                 && lights.next_event_estimation
                 && !scene.lights.is_empty() =>
         {
-            let (low, high) = scene
-                .triangles
-                .iter()
-                .flat_map(|t| t.vertices)
-                .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(l, h), v| (l.min(v), h.max(v)));
             Some(
                 LightGuide::new(low, high, &scene.lights.powers(), settings)
                     .map_err(|e| format!("light guide: {e}"))?,
@@ -389,8 +481,21 @@ pub fn prepare_with_lights(
         }
         _ => None,
     };
+    let environment_guide = match &scene.environment {
+        Some(environment)
+            if plan.environment_sampling == EnvironmentSampling::Tiles && lights.next_event_estimation =>
+        {
+            let settings = lights.environment_settings;
+            let (width, height, luminance) = environment.sky.luminance_grid();
+            let tiles = EnvironmentTiles::new(width, height, &luminance, settings.tiles)
+                .map_err(|e| format!("environment tiles: {e}"))?;
+            let sun = environment.sun.map(|sun| sun.disk);
+            Some(EnvTileGuide::new(low, high, tiles, sun, settings).map_err(|e| format!("environment guide: {e}"))?)
+        }
+        _ => None,
+    };
     let times = SetupTimes { load, bvh: bvh_seconds, guide: start.elapsed().as_secs_f64() };
-    Ok(Prepared { scene, intersector, guide, light_guide, plan, times })
+    Ok(Prepared { scene, intersector, guide, light_guide, environment_guide, plan, times })
 }
 
 fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool, String> {
@@ -443,32 +548,34 @@ pub fn render_prepared(
     let bar = if show_progress { progress_bar(settings.budget) } else { ProgressBar::hidden() };
     let mut checkpoints = Vec::new();
     let mut previous_seconds = 0.0;
-    let guide = if settings.integrator.method.uses_guide() { prepared.guide.as_mut() } else { None };
-    let light_guide = prepared.light_guide.as_mut();
-    let (image, statistics) =
-        render(&prepared.scene, &prepared.intersector, guide, light_guide, settings, |progress| {
-            match settings.budget {
-                Budget::SamplesPerPixel(_) => bar.set_position(progress.passes as u64),
-                Budget::Seconds(_) => {
-                    bar.set_position((progress.seconds * 1000.0) as u64);
-                    bar.set_message(format!("{} spp", progress.passes));
+    let learners = Learners {
+        directions: if settings.integrator.method.uses_guide() { prepared.guide.as_mut() } else { None },
+        lights: prepared.light_guide.as_mut(),
+        environment: prepared.environment_guide.as_mut(),
+    };
+    let (image, statistics) = render(&prepared.scene, &prepared.intersector, learners, settings, |progress| {
+        match settings.budget {
+            Budget::SamplesPerPixel(_) => bar.set_position(progress.passes as u64),
+            Budget::Seconds(_) => {
+                bar.set_position((progress.seconds * 1000.0) as u64);
+                bar.set_message(format!("{} spp", progress.passes));
+            }
+        }
+        let crossed = report_times.iter().any(|&t| previous_seconds < t && progress.seconds >= t);
+        previous_seconds = progress.seconds;
+        if let Some(reference) = reference {
+            if progress.passes.is_power_of_two() || crossed {
+                if let Some(error) = image_error(&progress.image(width, height), reference) {
+                    checkpoints.push(Checkpoint {
+                        seconds: progress.seconds,
+                        spp: progress.passes,
+                        counters: progress.counters,
+                        error,
+                    });
                 }
             }
-            let crossed = report_times.iter().any(|&t| previous_seconds < t && progress.seconds >= t);
-            previous_seconds = progress.seconds;
-            if let Some(reference) = reference {
-                if progress.passes.is_power_of_two() || crossed {
-                    if let Some(error) = image_error(&progress.image(width, height), reference) {
-                        checkpoints.push(Checkpoint {
-                            seconds: progress.seconds,
-                            spp: progress.passes,
-                            counters: progress.counters,
-                            error,
-                        });
-                    }
-                }
-            }
-        });
+        }
+    });
     bar.finish_and_clear();
     if let Some(reference) = reference {
         if checkpoints.last().is_none_or(|c| c.spp != statistics.passes) {
@@ -534,10 +641,22 @@ pub fn statistics_json(
             "rejected_updates": g.rejected_updates(),
         })
     });
+    let environment_guide = prepared.environment_guide.as_ref().map(|g| {
+        serde_json::json!({
+            "cells": g.resolution(),
+            "tiles": g.tiles().tiles(),
+            "sun": g.sun().is_some(),
+            "table_bytes": g.table_bytes(),
+            "memory_bytes": g.memory_bytes(),
+            "rejected_updates": g.rejected_updates(),
+        })
+    });
     serde_json::json!({
         "scene": prepared.scene.path.display().to_string(),
         "method": method.name(),
+        "plan": prepared.plan.describe(),
         "light_guide": light_guide,
+        "environment_guide": environment_guide,
         "width": image.width,
         "height": image.height,
         "passes": statistics.passes,
@@ -641,14 +760,14 @@ fn run_reference(args: &ReferenceArgs) -> Result<(), String> {
     }
     let pool = thread_pool(args.threads)?;
     let guide = args.integrator.uses_guide().then(HemisphereGridSettings::default);
-    let lights = LightRequest {
-        selection: Some(args.light_selection),
-        settings: LightGuideSettings::default(),
-        next_event_estimation: args.integrator.uses_nee(),
-    };
+    let lights = LightRequest::new(Some(args.light_selection), Some(args.env_sampling), args.integrator.uses_nee());
     let mut prepared = prepare_with_lights(&args.scene, IntersectorChoice::default(), guide, lights)?;
-    let integrator =
-        IntegratorSettings { method: args.integrator, light_selection: args.light_selection, ..Default::default() };
+    let integrator = IntegratorSettings {
+        method: args.integrator,
+        light_selection: args.light_selection,
+        environment_sampling: args.env_sampling,
+        ..Default::default()
+    };
     let settings =
         RenderSettings { integrator, budget: Budget::SamplesPerPixel(args.spp), seed: args.seed, train_seconds: 0.0 };
     let (image, statistics, _) = pool.install(|| render_prepared(&mut prepared, &settings, None, &[], true));
@@ -682,13 +801,12 @@ fn run_compare(args: &CompareArgs) -> Result<(), String> {
     let pool = thread_pool(options.threads)?;
     let mut rows = Vec::new();
     let mut names = Vec::new();
-    for &(method, selection) in &args.methods {
+    for compared in &args.methods {
+        let method = compared.method;
         let mut options = options.clone();
-        options.light_selection = SelectionChoice(selection.or(options.light_selection.0));
-        let name = match selection {
-            Some(selection) => format!("{}:{}", method.name(), selection.name()),
-            None => method.name().to_string(),
-        };
+        options.light_selection = SelectionChoice(compared.selection.or(options.light_selection.0));
+        options.env_sampling = EnvironmentChoice(compared.environment.or(options.env_sampling.0));
+        let name = compared.name();
         let mut prepared = prepare_with_lights(
             &args.scene,
             options.intersector,
@@ -712,7 +830,7 @@ fn run_compare(args: &CompareArgs) -> Result<(), String> {
         };
         let (image, statistics, checkpoints) =
             pool.install(|| render_prepared(&mut prepared, &settings, Some(&reference), &report_times, true));
-        let image_path = args.out.join(format!("{}.exr", name.replace(':', "-")));
+        let image_path = args.out.join(format!("{}.exr", name.replace([':', '+'], "-")));
         write_outputs(&image_path, &image, false)?;
         let json = statistics_json(method, &prepared, &statistics, &image, pool.current_num_threads());
         std::fs::write(sibling(&image_path, "json"), serde_json::to_string_pretty(&json).unwrap_or_default())

@@ -5,13 +5,15 @@
 //! after each path every vertex with a guide region is updated by Eq. (1).
 
 use glam::{Vec2, Vec3};
+use guiding_core::environment::{EnvCell, EnvLobe};
 use guiding_core::hemisphere::ProbeDistribution;
 use guiding_core::{
-    DirectionalDistribution, Guide, HemisphereGrid, Intersector, Lambertian, LightGuide, Pcg32, ProbeId, Ray,
-    ScatteringFunction,
+    DirectionalDistribution, EnvTileGuide, Guide, HemisphereGrid, Intersector, Lambertian, LightGuide, Pcg32, ProbeId,
+    Ray, ScatteringFunction,
 };
 
 use crate::color::luminance;
+use crate::environment::Environment;
 use crate::material::{Material, ShadingFrame, Surface};
 use crate::sampling::power_heuristic;
 use crate::scene::Scene;
@@ -74,6 +76,8 @@ pub struct IntegratorSettings {
     pub learn: bool,
     /// How next-event estimation picks an area light.
     pub light_selection: LightSelection,
+    /// How next-event estimation samples the environment.
+    pub environment_sampling: EnvironmentSampling,
 }
 
 impl Default for IntegratorSettings {
@@ -85,7 +89,40 @@ impl Default for IntegratorSettings {
             guide_probability: 0.3,
             learn: true,
             light_selection: LightSelection::Power,
+            environment_sampling: EnvironmentSampling::Luminance,
         }
+    }
+}
+
+/// How next-event estimation samples the environment (sky and sun).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum EnvironmentSampling {
+    /// In proportion to luminance everywhere (the sun by its share of the power).
+    Luminance,
+    /// From an [`EnvTileGuide`]: per grid cell, tiles of the map (and the sun) by the
+    /// light they were seen to bring there, with power and uniform defensive shares;
+    /// learns during every pass.
+    Tiles,
+}
+
+impl EnvironmentSampling {
+    /// Every choice, in the order the command line lists them.
+    pub const ALL: [EnvironmentSampling; 2] = [EnvironmentSampling::Luminance, EnvironmentSampling::Tiles];
+
+    /// The command-line name.
+    pub fn name(self) -> &'static str {
+        match self {
+            EnvironmentSampling::Luminance => "luminance",
+            EnvironmentSampling::Tiles => "tiles",
+        }
+    }
+
+    /// Parses a command-line name.
+    pub fn from_name(name: &str) -> Result<Self, String> {
+        Self::ALL
+            .into_iter()
+            .find(|s| s.name() == name)
+            .ok_or_else(|| format!("unknown environment sampling `{name}` (luminance, tiles)"))
     }
 }
 
@@ -246,6 +283,8 @@ pub struct PathTracer<'a, I: Intersector> {
     guide: Option<&'a HemisphereGrid>,
     /// The learned light selection, when `settings.light_selection` is `Learned`.
     light_guide: Option<&'a LightGuide>,
+    /// The learned environment sampling, when `settings.environment_sampling` is `Tiles`.
+    environment_guide: Option<&'a EnvTileGuide>,
     settings: IntegratorSettings,
     ray_epsilon: f32,
     environment_choice: f32,
@@ -253,12 +292,14 @@ pub struct PathTracer<'a, I: Intersector> {
 
 impl<'a, I: Intersector> PathTracer<'a, I> {
     /// A tracer; `guide` is used by the guided methods only, `light_guide` when lights
-    /// are selected as learned.
+    /// are selected as learned, `environment_guide` when the environment is sampled by
+    /// tiles.
     pub fn new(
         scene: &'a Scene,
         intersector: &'a I,
         guide: Option<&'a HemisphereGrid>,
         light_guide: Option<&'a LightGuide>,
+        environment_guide: Option<&'a EnvTileGuide>,
         settings: IntegratorSettings,
     ) -> Self {
         let (low, high) = scene
@@ -274,7 +315,9 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
         };
         let guide = if settings.method.uses_guide() { guide } else { None };
         let light_guide = light_guide.filter(|_| settings.light_selection == LightSelection::Learned);
-        Self { scene, intersector, guide, light_guide, settings, ray_epsilon, environment_choice }
+        let environment_guide =
+            environment_guide.filter(|_| settings.environment_sampling == EnvironmentSampling::Tiles);
+        Self { scene, intersector, guide, light_guide, environment_guide, settings, ray_epsilon, environment_choice }
     }
 
     /// Offset of a ray leaving `point` on the side of `normal` that `direction` points to:
@@ -297,6 +340,15 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
         (1.0 - self.environment_choice)
             * self.selection_probability(from, light)
             * self.scene.lights.point_pdf(light, from, point, normal)
+    }
+
+    /// Density per steradian with which next-event estimation (after choosing the
+    /// environment) draws direction `wi` from `from`.
+    fn environment_pdf(&self, environment: &Environment, from: Vec3, wi: Vec3) -> f32 {
+        match self.environment_guide {
+            Some(guide) => guide.cell(from).map_or(0.0, |cell| guide.distribution(cell).pdf(wi)),
+            None => environment.pdf(wi),
+        }
     }
 
     /// Picks an area light for next-event estimation at `point`: its index and probability.
@@ -353,9 +405,10 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
                 if let Some(environment) = &self.scene.environment {
                     let emitted = environment.radiance(ray.direction);
                     let weight = match previous {
-                        Some((_, pdf, false)) if settings.method.uses_nee() => {
-                            power_heuristic(pdf, self.environment_choice * environment.pdf(ray.direction))
-                        }
+                        Some((from, pdf, false)) if settings.method.uses_nee() => power_heuristic(
+                            pdf,
+                            self.environment_choice * self.environment_pdf(environment, from, ray.direction),
+                        ),
                         _ => 1.0,
                     };
                     radiance += throughput * emitted * weight;
@@ -533,10 +586,22 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
         let (u_choice, u_select, u) = (rng.next_f32(), rng.next_f32(), rng.next_vec2());
         // The light chosen and its point pdf (per steradian, before selection), for learning.
         let mut chosen: Option<(u32, f32)> = None;
+        // The environment guide's cell and lobe, for learning.
+        let mut tile: Option<(EnvCell, EnvLobe)> = None;
         let (wi, emitted, light_pdf, distance) = if u_choice < self.environment_choice {
             let Some(environment) = &self.scene.environment else { return Vec3::ZERO };
-            let Some(s) = environment.sample(u) else { return Vec3::ZERO };
-            (s.wi, s.radiance, self.environment_choice * s.pdf, f32::INFINITY)
+            match self.environment_guide {
+                Some(guide) => {
+                    let Some(cell) = guide.cell(point) else { return Vec3::ZERO };
+                    let s = clock.time(|| guide.distribution(cell).sample_lobe(u_select, u));
+                    tile = Some((cell, s.lobe));
+                    (s.direction, environment.radiance(s.direction), self.environment_choice * s.pdf, f32::INFINITY)
+                }
+                None => {
+                    let Some(s) = environment.sample(u_select, u) else { return Vec3::ZERO };
+                    (s.wi, s.radiance, self.environment_choice * s.pdf, f32::INFINITY)
+                }
+            }
         } else {
             let Some((light, probability)) = self.select_light(point, u_select) else { return Vec3::ZERO };
             let Some(s) = self.scene.lights.sample_point(light, &self.scene.triangles, point, u) else {
@@ -547,12 +612,18 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
             (s.wi, s.radiance, (1.0 - self.environment_choice) * probability * s.pdf, s.distance)
         };
         if !(light_pdf.is_finite() && light_pdf > 0.0) || emitted == Vec3::ZERO {
+            if let Some((cell, lobe)) = tile {
+                self.learn_environment(cell, lobe, wi, Vec3::ZERO);
+            }
             return Vec3::ZERO;
         }
         let f = material.eval(shading, wo, wi);
         if f == Vec3::ZERO {
             if let Some((light, _)) = chosen {
                 self.learn_light(point, light, 0.0, false);
+            }
+            if let Some((cell, lobe)) = tile {
+                self.learn_environment(cell, lobe, wi, Vec3::ZERO);
             }
             return Vec3::ZERO;
         }
@@ -572,6 +643,9 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
             // Eq. (3)'s ‖C‖∞: the unshadowed contribution of the whole light.
             self.learn_light(point, light, (f * emitted / point_pdf).max_element(), !occluded);
         }
+        if let Some((cell, lobe)) = tile {
+            self.learn_environment(cell, lobe, wi, if occluded { Vec3::ZERO } else { f });
+        }
         if occluded {
             return Vec3::ZERO;
         }
@@ -586,6 +660,18 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
                 guide.update(cell, light, contribution, unoccluded);
             }
         }
+    }
+
+    /// Teaches the environment guide one shadow ray of `lobe` from `cell`: `f` is the
+    /// BSDF × cos θ there (zero when occluded); the lobe learns ‖f·L‖∞ with L the
+    /// radiance of its own light (the sun's for the sun lobe, the sky's for a tile).
+    fn learn_environment(&self, cell: EnvCell, lobe: EnvLobe, wi: Vec3, f: Vec3) {
+        let (Some(guide), Some(environment)) = (self.environment_guide, &self.scene.environment) else { return };
+        let radiance = match &environment.sun {
+            Some(sun) if Some(lobe) == guide.sun_lobe() => sun.radiance(wi),
+            _ => environment.sky.radiance(wi),
+        };
+        guide.update(cell, lobe, wi, (f * radiance).max_element());
     }
 
     /// Applies Eq. (1) along a finished path, last vertex first. Rejected targets are

@@ -1,7 +1,7 @@
 //! [`GuidePlan`]: which learners a render builds, decided from facts of the scene, so a
 //! scene gets nothing it does not need.
 
-use crate::integrator::LightSelection;
+use crate::integrator::{EnvironmentSampling, LightSelection};
 use crate::scene::Scene;
 
 /// Fewest emissive triangles for which `--light-selection auto` learns light selection:
@@ -16,6 +16,9 @@ pub struct GuidePlan {
     pub directions: bool,
     /// How next-event estimation picks area lights (a light guide is built for `Learned`).
     pub light_selection: LightSelection,
+    /// How next-event estimation samples the environment (an environment-tile guide is
+    /// built for `Tiles`; nothing is built without an environment).
+    pub environment_sampling: EnvironmentSampling,
     /// One line per decision, for the user.
     pub reasons: Vec<String>,
 }
@@ -23,8 +26,16 @@ pub struct GuidePlan {
 impl GuidePlan {
     /// Decides from the scene: `directions` for guided methods; `requested` light
     /// selection, or (None, auto) learned selection when next-event estimation runs over
-    /// at least [`LEARNED_SELECTION_MIN_LIGHTS`] emissive triangles, power otherwise.
-    pub fn new(scene: &Scene, directions: bool, uses_nee: bool, requested: Option<LightSelection>) -> Self {
+    /// at least [`LEARNED_SELECTION_MIN_LIGHTS`] emissive triangles, power otherwise;
+    /// `requested_environment` sampling, or (None, auto) tiles whenever next-event
+    /// estimation meets an environment.
+    pub fn new(
+        scene: &Scene,
+        directions: bool,
+        uses_nee: bool,
+        requested: Option<LightSelection>,
+        requested_environment: Option<EnvironmentSampling>,
+    ) -> Self {
         let lights = scene.lights.len();
         let mut reasons = vec![if directions {
             "directions: hemisphere grid (guided method)".to_string()
@@ -51,11 +62,27 @@ impl GuidePlan {
                 LightSelection::Learned
             }
         };
-        reasons.push(match scene.environment {
-            Some(_) => "environment: importance-sampled by luminance".to_string(),
-            None => "environment: none, nothing built for it".to_string(),
-        });
-        Self { directions, light_selection, reasons }
+        let environment_sampling = match (&scene.environment, requested_environment) {
+            (None, _) => {
+                reasons.push("environment: none, nothing built for it".to_string());
+                EnvironmentSampling::Luminance
+            }
+            (Some(_), _) if !uses_nee => {
+                reasons.push("environment: reached by scattering only (no next-event estimation)".to_string());
+                EnvironmentSampling::Luminance
+            }
+            (Some(environment), requested) => {
+                let sampling = requested.unwrap_or(EnvironmentSampling::Tiles);
+                let sun = if environment.sun.is_some() { " and a separate sun" } else { "" };
+                let why = if requested.is_some() { "asked for" } else { "auto" };
+                reasons.push(match sampling {
+                    EnvironmentSampling::Tiles => format!("environment: learned tiles{sun} ({why})"),
+                    EnvironmentSampling::Luminance => format!("environment: by luminance{sun} ({why})"),
+                });
+                sampling
+            }
+        };
+        Self { directions, light_selection, environment_sampling, reasons }
     }
 
     /// The plan in one line.

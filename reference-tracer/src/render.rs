@@ -5,10 +5,12 @@
 use std::time::Instant;
 
 use glam::Vec3;
-use guiding_core::{Guide, HemisphereGrid, Intersector, LightGuide, Pcg32};
+use guiding_core::{EnvTileGuide, Guide, HemisphereGrid, Intersector, LightGuide, Pcg32};
 use rayon::prelude::*;
 
-use crate::integrator::{IntegratorSettings, LightSelection, PathCounters, PathScratch, PathTracer};
+use crate::integrator::{
+    EnvironmentSampling, IntegratorSettings, LightSelection, PathCounters, PathScratch, PathTracer,
+};
 use crate::output::Image;
 use crate::scene::Scene;
 
@@ -79,23 +81,42 @@ impl Progress<'_> {
     }
 }
 
-/// Renders `scene` progressively on the current rayon pool. `guide` is used (and
-/// learned) by the guided methods; `on_pass` sees the state after every pass.
+/// The learned structures a render uses; each is learned during every pass when the
+/// settings ask for it.
+#[derive(Default)]
+pub struct Learners<'a> {
+    /// The directional guide (guided methods).
+    pub directions: Option<&'a mut HemisphereGrid>,
+    /// Learned light selection (`LightSelection::Learned`).
+    pub lights: Option<&'a mut LightGuide>,
+    /// Learned environment sampling (`EnvironmentSampling::Tiles`).
+    pub environment: Option<&'a mut EnvTileGuide>,
+}
+
+/// Renders `scene` progressively on the current rayon pool with `learners` (learned
+/// during every pass); `on_pass` sees the state after every pass.
 pub fn render<I: Intersector>(
     scene: &Scene,
     intersector: &I,
-    mut guide: Option<&mut HemisphereGrid>,
-    mut light_guide: Option<&mut LightGuide>,
+    learners: Learners<'_>,
     settings: &RenderSettings,
     mut on_pass: impl FnMut(&Progress<'_>),
 ) -> (Image, RenderStatistics) {
+    let Learners { directions: mut guide, lights: mut light_guide, environment: mut environment_guide } = learners;
     let (width, height) = (scene.camera.width as usize, scene.camera.height as usize);
     let mut film = vec![[0.0f64; 3]; width * height];
     let mut statistics = RenderStatistics::default();
     let start = Instant::now();
     loop {
         let pass = statistics.passes;
-        let tracer = PathTracer::new(scene, intersector, guide.as_deref(), light_guide.as_deref(), settings.integrator);
+        let tracer = PathTracer::new(
+            scene,
+            intersector,
+            guide.as_deref(),
+            light_guide.as_deref(),
+            environment_guide.as_deref(),
+            settings.integrator,
+        );
         let pass_seed = settings.seed ^ (pass as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15);
         // Rows come back in order, so the pass sum is added up in the same order on every
         // run: renders that do not learn are reproducible to the last bit.
@@ -138,10 +159,17 @@ pub fn render<I: Intersector>(
                 light_guide.rebuild();
             }
         }
+        let learns_environment = settings.integrator.environment_sampling == EnvironmentSampling::Tiles;
+        if learns_environment {
+            if let Some(environment_guide) = environment_guide.as_deref_mut() {
+                environment_guide.rebuild();
+            }
+        }
         statistics.guide_rebuild_seconds += rebuild.elapsed().as_secs_f64();
         let seconds = start.elapsed().as_secs_f64();
-        let learns =
-            settings.integrator.method.uses_guide() || settings.integrator.light_selection == LightSelection::Learned;
+        let learns = settings.integrator.method.uses_guide()
+            || settings.integrator.light_selection == LightSelection::Learned
+            || learns_environment;
         if learns && seconds < settings.train_seconds {
             film.iter_mut().for_each(|p| *p = [0.0; 3]);
             statistics.pass_means.clear();

@@ -100,7 +100,7 @@ fn embree_and_obvhs_agree_on_every_shipped_scene() {
 fn cornell_renders_the_same_with_either_intersector() {
     let scene = support::repository_scene("cornell", 32, 32);
     let render = |choice| {
-        let mut prepared = reference_tracer::cli::prepare(&scene, choice, None).unwrap();
+        let prepared = reference_tracer::cli::prepare(&scene, choice, None).unwrap();
         let settings = reference_tracer::render::RenderSettings {
             integrator: support::settings(Method::Nee),
             budget: reference_tracer::render::Budget::SamplesPerPixel(64),
@@ -110,8 +110,7 @@ fn cornell_renders_the_same_with_either_intersector() {
         let (_, statistics) = reference_tracer::render::render(
             &prepared.scene,
             &prepared.intersector,
-            prepared.guide.as_mut(),
-            None,
+            reference_tracer::render::Learners::default(),
             &settings,
             |_| {},
         );

@@ -6,7 +6,7 @@
 mod support;
 
 use guiding_core::{HemisphereGridSettings, IntegralEstimator, LearningRate, UpdateRule};
-use reference_tracer::integrator::{LightSelection, Method};
+use reference_tracer::integrator::{EnvironmentSampling, LightSelection, Method};
 use serde_json::json;
 use support::{mean_estimate, render_scene, settings};
 
@@ -131,6 +131,25 @@ fn many_lights_means_agree_across_light_selections() {
     for (i, selection) in [LightSelection::Uniform, LightSelection::Learned].into_iter().enumerate() {
         let estimate = mean_estimate(&render_scene(&scene, with(selection), None, 128, 40 + i as u64));
         support::assert_agree(&format!("{selection:?} vs power"), &estimate, &reference);
+    }
+}
+
+#[test]
+fn window_means_agree_across_environment_sampling() {
+    // Sky through a window plus a sun that reaches only a patch of the room: learned
+    // tiles (and the guided method on top) must converge to what luminance sampling does.
+    let scene = support::repository_scene("window", 32, 24);
+    let with = |method, environment_sampling| reference_tracer::integrator::IntegratorSettings {
+        environment_sampling,
+        ..settings(method)
+    };
+    let reference =
+        mean_estimate(&render_scene(&scene, with(Method::Nee, EnvironmentSampling::Luminance), None, 512, 51));
+    let guide = HemisphereGridSettings { probe_count: Some(400), ..Default::default() };
+    for (i, (method, guide)) in [(Method::Nee, None), (Method::GuidedNee, Some(guide))].into_iter().enumerate() {
+        let estimate =
+            mean_estimate(&render_scene(&scene, with(method, EnvironmentSampling::Tiles), guide, 256, 60 + i as u64));
+        support::assert_agree(&format!("{} with tiles vs nee with luminance", method.name()), &estimate, &reference);
     }
 }
 

@@ -4,16 +4,15 @@
 
 use std::path::Path;
 
-use guiding_core::{HemisphereGridSettings, LightGuideSettings};
+use guiding_core::{EnvTileGuideSettings, HemisphereGridSettings, LightGuideSettings};
 use reference_tracer::cli::{prepare_with_lights, LightRequest};
-use reference_tracer::integrator::{LightSelection, Method};
+use reference_tracer::integrator::{EnvironmentSampling, LightSelection, Method};
 use reference_tracer::scene_intersector::IntersectorChoice;
 
 fn plan(scene: &str, method: Method, selection: Option<LightSelection>) -> reference_tracer::cli::Prepared {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes").join(scene).join("scene.json");
     let guide = method.uses_guide().then(|| HemisphereGridSettings { budget_bytes: 64 << 10, ..Default::default() });
-    let lights =
-        LightRequest { selection, settings: LightGuideSettings::default(), next_event_estimation: method.uses_nee() };
+    let lights = LightRequest::new(selection, None, method.uses_nee());
     prepare_with_lights(&path, IntersectorChoice::default(), guide, lights).unwrap()
 }
 
@@ -51,6 +50,34 @@ fn an_explicit_choice_overrides_the_plan() {
     assert_eq!(prepared.plan.light_selection, LightSelection::Uniform);
     assert!(prepared.light_guide.is_none());
     let prepared = plan("window", Method::GuidedNee, None);
-    assert!(prepared.plan.describe().contains("environment: importance-sampled"));
+    assert!(
+        prepared.plan.describe().contains("environment: learned tiles and a separate sun"),
+        "{}",
+        prepared.plan.describe()
+    );
     assert!(prepared.guide.is_some());
+}
+
+#[test]
+fn an_environment_guide_is_built_only_where_an_environment_meets_next_event_estimation() {
+    // No environment: nothing allocated for it, whatever the method.
+    for method in Method::ALL {
+        let prepared = plan("cornell", method, None);
+        assert!(prepared.environment_guide.is_none(), "{method:?}");
+        assert_eq!(prepared.plan.environment_sampling, EnvironmentSampling::Luminance);
+    }
+    // An environment: tiles for next-event estimation, with the sun as its own lobe.
+    let prepared = plan("window", Method::Nee, None);
+    let guide = prepared.environment_guide.as_ref().expect("an environment guide");
+    assert!(guide.sun().is_some() && guide.lobe_count() == guide.tiles().tile_count() + 1);
+    assert!(guide.table_bytes() <= EnvTileGuideSettings::default().budget_bytes);
+    // Methods that never sample the environment directly build none.
+    for method in [Method::Pt, Method::Guided] {
+        assert!(plan("window", method, None).environment_guide.is_none(), "{method:?}");
+    }
+    // Asked for plain luminance sampling: none.
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/window/scene.json");
+    let request = LightRequest::new(None, Some(EnvironmentSampling::Luminance), true);
+    let prepared = prepare_with_lights(&path, IntersectorChoice::default(), None, request).unwrap();
+    assert!(prepared.environment_guide.is_none());
 }

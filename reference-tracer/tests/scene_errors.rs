@@ -90,6 +90,31 @@ fn bad_radiance_is_an_error() {
 }
 
 #[test]
+fn bad_suns_are_errors_naming_the_field() {
+    let sun = |field: &str, value: serde_json::Value| {
+        let mut sun = json!({ "direction": [0, 1, 0], "angular_radius_deg": 0.5, "radiance": [1000, 1000, 1000] });
+        sun[field] = value;
+        move |j: &mut serde_json::Value| {
+            j["environment"] = json!({ "type": "constant", "radiance": [0.1, 0.1, 0.1], "sun": sun })
+        }
+    };
+    for (name, field, value, path) in [
+        ("sun-zero-direction", "direction", json!([0, 0, 0]), "environment.sun.direction"),
+        ("sun-zero-radius", "angular_radius_deg", json!(0), "environment.sun.angular_radius_deg"),
+        ("sun-huge-radius", "angular_radius_deg", json!(120), "environment.sun.angular_radius_deg"),
+        ("sun-negative", "radiance", json!([-1, 0, 0]), "environment.sun.radiance"),
+        ("sun-infinite", "radiance", json!([1e39, 0, 0]), "environment.sun.radiance"),
+    ] {
+        assert_mentions(&error_of(name, sun(field, value)), &[path]);
+    }
+    let text = error_of("sun-unknown-key", |j| {
+        j["environment"] = json!({ "type": "constant", "radiance": [0.1, 0.1, 0.1],
+            "sun": { "direction": [0, 1, 0], "angular_radius_deg": 0.5, "radiance": [1, 1, 1], "size": 2 } })
+    });
+    assert_mentions(&text, &["environment", "size"]);
+}
+
+#[test]
 fn index_out_of_range_and_bad_counts() {
     let text = error_of("index", |j| j["shapes"][1]["indices"] = json!([0, 1, 7]));
     assert_mentions(&text, &["shapes[1].indices[2]", "out of range"]);

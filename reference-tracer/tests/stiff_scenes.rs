@@ -1,4 +1,4 @@
-//! Stiff and extreme scenes: radiance spanning twelve orders of magnitude, a dim
+//! Stiff and extreme scenes: radiance spanning twelve orders of magnitude, a tiny sun disk of 1e9, a dim
 //! emitter, a tiny light, grazing camera rays, broken triangles, and the whole scene
 //! moved far from the origin or scaled. Each render must be finite and match the known
 //! answer, or the unmodified scene, within noise (4 standard errors from pass means).
@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 
 use glam::Vec3;
 use guiding_core::HemisphereGridSettings;
-use reference_tracer::integrator::Method;
+use reference_tracer::integrator::{EnvironmentSampling, IntegratorSettings, Method};
 use reference_tracer::output::{write_pfm, Image};
 use reference_tracer::scene::Scene;
 use serde_json::{json, Value};
@@ -81,6 +81,38 @@ fn a_sun_of_1e6_over_a_sky_of_1e_minus_3() {
         assert!(
             (e.mean - expected).abs() <= 4.0 * e.standard_error + 1e-4 * expected,
             "{method:?}: {} ± {} vs exact {expected}",
+            e.mean,
+            e.standard_error
+        );
+    }
+}
+
+#[test]
+fn a_sun_disk_of_1e9_and_a_twentieth_of_a_degree_over_a_sky_of_1e_minus_3() {
+    // ∫ over a cone of half-angle r of ω dω = π sin²r · axis, so the floor's radiance is
+    // exactly ρ/π · (π L_sky + L_sun π sin²r cos θ_sun).
+    let (radius_deg, sun_radiance, sky) = (0.05f64, 1e9f64, 1e-3f64);
+    let axis = Vec3::new(0.3, 0.6, -0.2).normalize();
+    let environment = json!({ "type": "constant", "radiance": [sky, sky, sky],
+        "sun": { "direction": [0.3, 0.6, -0.2], "angular_radius_deg": radius_deg, "radiance": [sun_radiance, sun_radiance, sun_radiance] } });
+    let scene = floor_scene("stiff-sun-disk", environment);
+    let r = radius_deg.to_radians();
+    let expected = 0.5 / PI * (PI * sky + sun_radiance * PI * r.sin().powi(2) * axis.y as f64);
+    for (i, (method, sampling)) in [
+        (Method::Nee, EnvironmentSampling::Luminance),
+        (Method::Nee, EnvironmentSampling::Tiles),
+        (Method::GuidedNee, EnvironmentSampling::Tiles),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let integrator = IntegratorSettings { environment_sampling: sampling, ..settings(method) };
+        let statistics = render_scene(&scene, integrator, guide_settings(), 64, 3 + i as u64);
+        assert!(statistics.pass_means.iter().flatten().all(|v| v.is_finite()), "{method:?} {sampling:?}");
+        let e = mean_estimate(&statistics);
+        assert!(
+            (e.mean - expected).abs() <= 4.0 * e.standard_error + 1e-3 * expected,
+            "{method:?} {sampling:?}: {} ± {} vs exact {expected}",
             e.mean,
             e.standard_error
         );

@@ -3,11 +3,10 @@
 
 use std::path::{Path, PathBuf};
 
-use guiding_core::LightGuideSettings;
 use reference_tracer::cli::{prepare_with_lights, LightRequest};
 use reference_tracer::integrator::{IntegratorSettings, Method};
 use reference_tracer::output::Image;
-use reference_tracer::render::{render, Budget, RenderSettings, RenderStatistics};
+use reference_tracer::render::{render, Budget, Learners, RenderSettings, RenderStatistics};
 use reference_tracer::scene_intersector::IntersectorChoice;
 
 /// A fresh temporary folder for one test.
@@ -33,6 +32,10 @@ pub fn repository_scene(name: &str, width: u32, height: u32) -> PathBuf {
         serde_json::from_str(&std::fs::read_to_string(source.join("scene.json")).unwrap()).unwrap();
     json["camera"]["width"] = width.into();
     json["camera"]["height"] = height.into();
+    // Files outside the scene's folder (shared environment maps) are referred to where they are.
+    if let Some(file) = json["environment"]["file"].as_str() {
+        json["environment"]["file"] = source.join(file).display().to_string().into();
+    }
     copy_folder(&source, &folder);
     write_scene(&folder, &json)
 }
@@ -96,16 +99,20 @@ pub fn render_image(
     spp: u32,
     seed: u64,
 ) -> (Image, RenderStatistics) {
-    // Learned light selection gets a light guide with the default settings.
-    let lights = LightRequest {
-        selection: Some(integrator.light_selection),
-        settings: LightGuideSettings::default(),
-        next_event_estimation: integrator.method.uses_nee(),
-    };
+    // Learned light selection and environment tiles get guides with the default settings.
+    let lights = LightRequest::new(
+        Some(integrator.light_selection),
+        Some(integrator.environment_sampling),
+        integrator.method.uses_nee(),
+    );
     let mut prepared = prepare_with_lights(scene, IntersectorChoice::default(), guide, lights).unwrap();
     let settings = RenderSettings { integrator, budget: Budget::SamplesPerPixel(spp), seed, train_seconds: 0.0 };
-    let guide = prepared.guide.as_mut();
-    render(&prepared.scene, &prepared.intersector, guide, prepared.light_guide.as_mut(), &settings, |_| {})
+    let learners = Learners {
+        directions: prepared.guide.as_mut(),
+        lights: prepared.light_guide.as_mut(),
+        environment: prepared.environment_guide.as_mut(),
+    };
+    render(&prepared.scene, &prepared.intersector, learners, &settings, |_| {})
 }
 
 pub fn settings(method: Method) -> IntegratorSettings {

@@ -112,6 +112,9 @@ pub enum EnvironmentDescription {
     Constant {
         /// Radiance.
         radiance: [f32; 3],
+        /// A sun on top of it.
+        #[serde(default)]
+        sun: Option<SunDescription>,
     },
     /// A lat-long image.
     Image {
@@ -120,5 +123,20 @@ pub enum EnvironmentDescription {
         /// Radiance multiplier.
         #[serde(default)]
         scale: Option<f32>,
+        /// A sun on top of it.
+        #[serde(default)]
+        sun: Option<SunDescription>,
     },
+}
+
+/// A sun: a disk of uniform radiance far away, sampled apart from the sky.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SunDescription {
+    /// Towards the sun's centre (any length > 0).
+    pub direction: [f32; 3],
+    /// Angular radius, degrees, in (0, 90].
+    pub angular_radius_deg: f32,
+    /// Radiance inside the disk.
+    pub radiance: [f32; 3],
 }

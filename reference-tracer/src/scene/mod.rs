@@ -8,15 +8,16 @@ mod mesh;
 use std::path::{Path, PathBuf};
 
 use glam::{Mat4, Vec3};
+use guiding_core::environment::SunDisk;
 use guiding_core::Triangle;
 
 use crate::camera::Camera;
-use crate::color::is_valid_radiance;
-use crate::environment::{Environment, LatLongMap};
+use crate::color::{is_valid_radiance, luminance};
+use crate::environment::{Environment, LatLongMap, Sky, Sun};
 use crate::lights::AreaLights;
 use crate::material::{Material, Surface};
 pub use description::{
-    CameraDescription, EnvironmentDescription, MaterialDescription, SceneDescription, ShapeDescription,
+    CameraDescription, EnvironmentDescription, MaterialDescription, SceneDescription, ShapeDescription, SunDescription,
 };
 pub use error::SceneError;
 pub use mesh::{parse_mesh, MeshData, MeshFormat};
@@ -258,16 +259,16 @@ fn shape_geometry<'a>(
 }
 
 fn build_environment(env: &EnvironmentDescription, folder: &Path, path: &Path) -> Result<Environment, SceneError> {
-    match env {
-        EnvironmentDescription::Constant { radiance } => {
+    let (sky, sun) = match env {
+        EnvironmentDescription::Constant { radiance, sun } => {
             let radiance = Vec3::from(*radiance);
             if !is_valid_radiance(radiance) {
                 let message = format!("{radiance:?} must be finite and non-negative radiance");
                 return Err(SceneError::new(path, "environment.radiance", message));
             }
-            Ok(Environment::Constant(radiance))
+            (Sky::Constant(radiance), sun)
         }
-        EnvironmentDescription::Image { file, scale } => {
+        EnvironmentDescription::Image { file, scale, sun } => {
             let scale = scale.unwrap_or(1.0);
             if !(scale.is_finite() && scale >= 0.0) {
                 return Err(SceneError::new(
@@ -293,7 +294,29 @@ fn build_environment(env: &EnvironmentDescription, folder: &Path, path: &Path) -
                 )));
             }
             let texels = image.pixels.iter().map(|&p| p * scale).collect();
-            Ok(Environment::Image(LatLongMap::new(image.width, image.height, texels)))
+            (Sky::Image(LatLongMap::new(image.width, image.height, texels)), sun)
         }
+    };
+    let sun = match sun {
+        Some(sun) => Some(build_sun(sun, path)?),
+        None => None,
+    };
+    Ok(Environment::new(sky, sun))
+}
+
+fn build_sun(sun: &SunDescription, path: &Path) -> Result<Sun, SceneError> {
+    let radiance = Vec3::from(sun.radiance);
+    if !is_valid_radiance(radiance) {
+        let message = format!("{radiance:?} must be finite and non-negative radiance");
+        return Err(SceneError::new(path, "environment.sun.radiance", message));
     }
+    let disk = SunDisk::new(Vec3::from(sun.direction), sun.angular_radius_deg.to_radians(), luminance(radiance))
+        .map_err(|e| {
+            let field = match &e {
+                guiding_core::Error::InvalidSetting { name: "sun.direction", .. } => "environment.sun.direction",
+                _ => "environment.sun.angular_radius_deg",
+            };
+            SceneError::new(path, field, e.to_string())
+        })?;
+    Ok(Sun { disk, radiance })
 }
