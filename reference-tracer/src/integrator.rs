@@ -5,7 +5,7 @@
 //! after each path every vertex with a guide region is updated by Eq. (1).
 
 use glam::{Vec2, Vec3};
-use guiding_core::environment::{EnvCell, EnvLobe};
+use guiding_core::environment::{EnvCell, EnvSample};
 use guiding_core::hemisphere::ProbeDistribution;
 use guiding_core::{
     DirectionalDistribution, EnvTileGuide, Guide, HemisphereGrid, Intersector, Lambertian, LightGuide, Pcg32, ProbeId,
@@ -587,14 +587,14 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
         // The light chosen and its point pdf (per steradian, before selection), for learning.
         let mut chosen: Option<(u32, f32)> = None;
         // The environment guide's cell and lobe, for learning.
-        let mut tile: Option<(EnvCell, EnvLobe)> = None;
+        let mut tile: Option<(EnvCell, EnvSample)> = None;
         let (wi, emitted, light_pdf, distance) = if u_choice < self.environment_choice {
             let Some(environment) = &self.scene.environment else { return Vec3::ZERO };
             match self.environment_guide {
                 Some(guide) => {
                     let Some(cell) = guide.cell(point) else { return Vec3::ZERO };
                     let s = clock.time(|| guide.distribution(cell).sample_lobe(u_select, u));
-                    tile = Some((cell, s.lobe));
+                    tile = Some((cell, s));
                     (s.direction, environment.radiance(s.direction), self.environment_choice * s.pdf, f32::INFINITY)
                 }
                 None => {
@@ -612,8 +612,8 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
             (s.wi, s.radiance, (1.0 - self.environment_choice) * probability * s.pdf, s.distance)
         };
         if !(light_pdf.is_finite() && light_pdf > 0.0) || emitted == Vec3::ZERO {
-            if let Some((cell, lobe)) = tile {
-                self.learn_environment(cell, lobe, wi, Vec3::ZERO);
+            if let Some((cell, sample)) = tile {
+                self.learn_environment(cell, &sample, Vec3::ZERO);
             }
             return Vec3::ZERO;
         }
@@ -622,8 +622,8 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
             if let Some((light, _)) = chosen {
                 self.learn_light(point, light, 0.0, false);
             }
-            if let Some((cell, lobe)) = tile {
-                self.learn_environment(cell, lobe, wi, Vec3::ZERO);
+            if let Some((cell, sample)) = tile {
+                self.learn_environment(cell, &sample, Vec3::ZERO);
             }
             return Vec3::ZERO;
         }
@@ -643,8 +643,8 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
             // Eq. (3)'s ‖C‖∞: the unshadowed contribution of the whole light.
             self.learn_light(point, light, (f * emitted / point_pdf).max_element(), !occluded);
         }
-        if let Some((cell, lobe)) = tile {
-            self.learn_environment(cell, lobe, wi, if occluded { Vec3::ZERO } else { f });
+        if let Some((cell, sample)) = tile {
+            self.learn_environment(cell, &sample, if occluded { Vec3::ZERO } else { f });
         }
         if occluded {
             return Vec3::ZERO;
@@ -662,16 +662,16 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
         }
     }
 
-    /// Teaches the environment guide one shadow ray of `lobe` from `cell`: `f` is the
-    /// BSDF × cos θ there (zero when occluded); the lobe learns ‖f·L‖∞ with L the
+    /// Teaches the environment guide the shadow ray of `sample` from `cell`: `f` is the
+    /// BSDF × cos θ there (zero when occluded); the sample's lobe learns ‖f·L‖∞ with L the
     /// radiance of its own light (the sun's for the sun lobe, the sky's for a tile).
-    fn learn_environment(&self, cell: EnvCell, lobe: EnvLobe, wi: Vec3, f: Vec3) {
+    fn learn_environment(&self, cell: EnvCell, sample: &EnvSample, f: Vec3) {
         let (Some(guide), Some(environment)) = (self.environment_guide, &self.scene.environment) else { return };
         let radiance = match &environment.sun {
-            Some(sun) if Some(lobe) == guide.sun_lobe() => sun.radiance(wi),
-            _ => environment.sky.radiance(wi),
+            Some(sun) if Some(sample.lobe) == guide.sun_lobe() => sun.radiance(sample.direction),
+            _ => environment.sky.radiance(sample.direction),
         };
-        guide.update(cell, lobe, wi, (f * radiance).max_element());
+        guide.update(cell, sample, (f * radiance).max_element());
     }
 
     /// Applies Eq. (1) along a finished path, last vertex first. Rejected targets are

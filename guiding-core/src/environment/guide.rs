@@ -37,6 +37,8 @@ pub struct EnvSample {
     pub pdf: f32,
     /// The lobe it came from, for [`EnvTileGuide::update`].
     pub lobe: EnvLobe,
+    /// Density of `direction` given that lobe, per steradian.
+    pub lobe_pdf: f32,
 }
 
 /// Learned environment sampling for next-event estimation: the map cut into tiles, a
@@ -57,7 +59,7 @@ pub struct EnvSample {
 /// // Only light from straight up (+y) ever arrives in this cell.
 /// for i in 0..1000 {
 ///     let s = guide.distribution(cell).sample_lobe(0.37 * i as f32 % 1.0, Vec2::new(0.5, 0.5));
-///     guide.update(cell, s.lobe, s.direction, if s.direction.y > 0.0 { 1.0 } else { 0.0 });
+///     guide.update(cell, &s, if s.direction.y > 0.0 { 1.0 } else { 0.0 });
 /// }
 /// guide.rebuild();
 /// let up = guide.distribution(cell).pdf(Vec3::new(0.1, 0.9, 0.0).normalize());
@@ -140,15 +142,17 @@ impl EnvTileGuide {
         self.sun.map(|_| EnvLobe(self.tiles.tile_count() as u32))
     }
 
-    /// Learns from one environment sample of `lobe` in `cell`: `integrand` is
-    /// ‖f·L·cos θ‖∞ × visibility at `direction` (radiance × BSDF, not divided by any pdf),
-    /// with L the radiance of that lobe's light alone (the sky's for a tile, the sun's
-    /// for the sun). The target is integrand / p(direction | lobe), a one-sample estimate
-    /// of the lobe's whole contribution. NaN, infinite and negative integrands are
-    /// rejected and counted; a direction outside its lobe is `OutsideDomain`.
-    pub fn update(&self, cell: EnvCell, lobe: EnvLobe, direction: Vec3, integrand: f32) -> UpdateOutcome {
-        let (cell, lobe) = (cell.0 as usize, lobe.0 as usize);
-        if cell >= self.grid.cell_count() || lobe >= self.lobes || !direction.is_finite() {
+    /// Learns from `sample`, drawn from `cell`'s distribution: `integrand` is
+    /// ‖f·L·cos θ‖∞ × visibility at its direction (radiance × BSDF, not divided by any
+    /// pdf), with L the radiance of the sample's lobe alone (the sky's for a tile, the
+    /// sun's for the sun). The target is integrand / p(direction | lobe), a one-sample
+    /// estimate of the lobe's whole contribution. NaN, infinite and negative integrands
+    /// are rejected and counted; a cell, lobe or lobe density that no sample of this guide
+    /// has is `OutsideDomain`.
+    pub fn update(&self, cell: EnvCell, sample: &EnvSample, integrand: f32) -> UpdateOutcome {
+        let (cell, lobe, conditional_pdf) = (cell.0 as usize, sample.lobe.0 as usize, sample.lobe_pdf);
+        let valid_pdf = conditional_pdf.is_finite() && conditional_pdf > 0.0;
+        if cell >= self.grid.cell_count() || lobe >= self.lobes || !valid_pdf {
             return UpdateOutcome::OutsideDomain;
         }
         let integrand = match classify_target(integrand) {
@@ -158,19 +162,6 @@ impl EnvTileGuide {
                 return rejected;
             }
         };
-        let conditional_pdf = match self.sun {
-            Some(sun) if lobe == self.tiles.tile_count() => {
-                if sun.contains(direction) {
-                    sun.pdf()
-                } else {
-                    0.0
-                }
-            }
-            _ => self.tiles.pdf_in_tile(lobe, direction),
-        };
-        if conditional_pdf <= 0.0 {
-            return UpdateOutcome::OutsideDomain;
-        }
         let target = integrand / conditional_pdf;
         let index = cell * self.lobes + lobe;
         let n = atomic_f32::increment_saturating(&self.updates[index]);
@@ -265,11 +256,23 @@ impl EnvDistribution<'_> {
     pub fn sample_lobe(&self, u_lobe: f32, u: Vec2) -> EnvSample {
         let (lobe, _) = sample_cdf(self.cdf, u_lobe);
         let tiles = &self.guide.tiles;
-        let direction = match self.guide.sun {
-            Some(sun) if lobe == tiles.tile_count() => sun.sample(u),
-            _ => tiles.sample_in_tile(lobe, u),
+        let sun_lobe = tiles.tile_count();
+        let (direction, lobe_pdf, pdf) = match self.guide.sun {
+            Some(sun) if lobe == sun_lobe => {
+                let direction = sun.sample(u);
+                (direction, sun.pdf(), self.pdf(direction))
+            }
+            _ => {
+                // The tile and texel are known: only the sun may overlap them.
+                let (direction, lobe_pdf) = tiles.sample_in_tile(lobe, u);
+                let mut pdf = cdf_probability(self.cdf, lobe) * lobe_pdf;
+                if let Some(sun) = self.guide.sun.filter(|sun| sun.contains(direction)) {
+                    pdf += cdf_probability(self.cdf, sun_lobe) * sun.pdf();
+                }
+                (direction, lobe_pdf, pdf)
+            }
         };
-        EnvSample { direction, pdf: self.pdf(direction), lobe: EnvLobe(lobe as u32) }
+        EnvSample { direction, pdf, lobe: EnvLobe(lobe as u32), lobe_pdf }
     }
 
     /// The probability of picking `lobe`.
@@ -346,7 +349,7 @@ mod tests {
                 }
             };
             let visible = s.direction.y > 0.3;
-            guide.update(cell, s.lobe, s.direction, if visible { radiance * s.direction.y } else { 0.0 });
+            guide.update(cell, &s, if visible { radiance * s.direction.y } else { 0.0 });
         }
         guide.rebuild();
         (guide, cell)
@@ -444,7 +447,8 @@ mod tests {
         let cell = guide.cell(Vec3::ZERO).unwrap();
         // Only one tile ever brings light.
         for _ in 0..100 {
-            guide.update(cell, EnvLobe(3), guide.tiles().sample_in_tile(3, Vec2::splat(0.5)), 1.0);
+            let (direction, lobe_pdf) = guide.tiles().sample_in_tile(3, Vec2::splat(0.5));
+            guide.update(cell, &EnvSample { direction, pdf: 0.0, lobe: EnvLobe(3), lobe_pdf }, 1.0);
         }
         guide.rebuild();
         let distribution = guide.distribution(cell);
@@ -458,15 +462,14 @@ mod tests {
     #[test]
     fn bad_updates_are_rejected_and_counted() {
         let (guide, cell) = learned_guide(true);
-        let d = Vec3::Y;
-        let tile = EnvLobe(guide.tiles().tile_of(d) as u32);
-        assert_eq!(guide.update(cell, tile, d, f32::NAN), UpdateOutcome::RejectedNonFinite);
-        assert_eq!(guide.update(cell, tile, d, -1.0), UpdateOutcome::RejectedNegative);
-        assert_eq!(guide.update(cell, EnvLobe(999), d, 1.0), UpdateOutcome::OutsideDomain);
-        assert_eq!(guide.update(EnvCell(999), tile, d, 1.0), UpdateOutcome::OutsideDomain);
-        assert_eq!(guide.update(cell, tile, Vec3::NAN, 1.0), UpdateOutcome::OutsideDomain);
-        // The sun lobe with a direction far from the sun.
-        assert_eq!(guide.update(cell, guide.sun_lobe().unwrap(), -Vec3::Y, 1.0), UpdateOutcome::OutsideDomain);
+        let s = guide.distribution(cell).sample_lobe(0.5, Vec2::splat(0.5));
+        assert_eq!(guide.update(cell, &s, f32::NAN), UpdateOutcome::RejectedNonFinite);
+        assert_eq!(guide.update(cell, &s, -1.0), UpdateOutcome::RejectedNegative);
+        assert_eq!(guide.update(cell, &EnvSample { lobe: EnvLobe(999), ..s }, 1.0), UpdateOutcome::OutsideDomain);
+        assert_eq!(guide.update(EnvCell(999), &s, 1.0), UpdateOutcome::OutsideDomain);
+        for lobe_pdf in [0.0, f32::NAN, f32::INFINITY] {
+            assert_eq!(guide.update(cell, &EnvSample { lobe_pdf, ..s }, 1.0), UpdateOutcome::OutsideDomain);
+        }
         assert_eq!(guide.rejected_updates(), 2);
         assert_eq!(guide.cell(Vec3::NAN), None);
     }
@@ -496,8 +499,12 @@ mod tests {
             let cell = guide.cell(Vec3::ZERO).unwrap();
             for &(lobe, integrand, u, v) in &updates {
                 let lobe = EnvLobe(lobe % 33);
-                let direction = if lobe.0 == 32 { sun.sample(Vec2::new(u, v)) } else { guide.tiles().sample_in_tile(lobe.0 as usize, Vec2::new(u, v)) };
-                guide.update(cell, lobe, direction, integrand);
+                let (direction, lobe_pdf) = if lobe.0 == 32 {
+                    (sun.sample(Vec2::new(u, v)), sun.pdf())
+                } else {
+                    guide.tiles().sample_in_tile(lobe.0 as usize, Vec2::new(u, v))
+                };
+                guide.update(cell, &EnvSample { direction, pdf: 0.0, lobe, lobe_pdf }, integrand);
             }
             guide.rebuild();
             for c in 0..guide.cell_count() as u32 {

@@ -23,7 +23,7 @@ pub struct EnvTileGuideSettings {
 
 impl Default for EnvTileGuideSettings {
     fn default() -> Self {
-        Self { budget_bytes: 1 << 20, resolution: None, tiles: [16, 8], power_mix: 0.2, uniform_mix: 0.01 }
+        Self { budget_bytes: 1 << 20, resolution: None, tiles: [32, 16], power_mix: 0.1, uniform_mix: 0.01 }
     }
 }
 

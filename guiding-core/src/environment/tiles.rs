@@ -30,9 +30,9 @@ pub const MAX_TEXELS: usize = 1 << 27;
 /// let luminance = [0.0, 0.0, 9.0, 0.0, 1.0, 1.0, 1.0, 1.0];
 /// let tiles = EnvironmentTiles::new(4, 2, &luminance, [2, 1])?;
 /// assert_eq!(tiles.tile_count(), 2);
-/// let d = tiles.sample_in_tile(1, Vec2::new(0.5, 0.5));
+/// let (d, pdf) = tiles.sample_in_tile(1, Vec2::new(0.5, 0.5));
 /// assert_eq!(tiles.tile_of(d), 1);
-/// assert!(tiles.pdf_in_tile(1, d) > 0.0);
+/// assert!(pdf > 0.0 && pdf == tiles.pdf_in_tile(1, d));
 /// # Ok::<(), guiding_core::Error>(())
 /// ```
 #[derive(Clone, Debug)]
@@ -134,16 +134,19 @@ impl EnvironmentTiles {
     }
 
     /// A direction in tile `t`: a texel by its CDF from `u.x`, then uniform in (u, v)
-    /// inside it from the rest of `u.x` and `u.y`.
+    /// inside it from the rest of `u.x` and `u.y`. Returns the direction and its density
+    /// given the tile, per steradian (what [`pdf_in_tile`](Self::pdf_in_tile) reports for
+    /// it, unless rounding put it across a texel border).
     #[inline]
-    pub fn sample_in_tile(&self, t: usize, u: Vec2) -> Vec3 {
+    pub fn sample_in_tile(&self, t: usize, u: Vec2) -> (Vec3, f32) {
         let [tx, ty] = self.tiles;
         let (columns, rows) = (span(t % tx, tx, self.width), span(t / tx, ty, self.height));
         let (k, u_column) = sample_cdf(&self.texel_cdf[self.tile_start[t]..self.tile_start[t + 1]], u.x);
         let column = columns.start + k % columns.len();
         let row = rows.start + k / columns.len();
         let uv = Vec2::new((column as f32 + u_column) / self.width as f32, (row as f32 + u.y) / self.height as f32);
-        direction_of_uv(uv)
+        let direction = direction_of_uv(uv);
+        (direction, self.texel_pdf(t, k, direction))
     }
 
     /// Density per steradian of [`sample_in_tile`](Self::sample_in_tile)`(t, ·)` at
@@ -239,11 +242,11 @@ mod tests {
         let mut rng = Pcg32::new(9, 9);
         for tile in 0..t.tile_count() {
             for _ in 0..2000 {
-                let d = t.sample_in_tile(tile, rng.next_vec2());
+                let (d, sampled_pdf) = t.sample_in_tile(tile, rng.next_vec2());
                 assert!((d.length() - 1.0).abs() < 1e-5);
                 let (found, pdf) = t.tile_and_pdf(d);
                 assert_eq!(found, tile);
-                assert!(pdf > 0.0 && pdf == t.pdf_in_tile(tile, d));
+                assert!(pdf > 0.0 && pdf == t.pdf_in_tile(tile, d) && pdf == sampled_pdf);
             }
         }
     }
