@@ -124,8 +124,9 @@ struct ReferenceArgs {
 /// Options shared by every command that traces paths.
 #[derive(Debug, Args, Clone)]
 pub struct TraceOptions {
-    /// The guide structure: hemisphere.
-    #[arg(long, default_value = "hemisphere", value_parser = ["hemisphere"])]
+    /// The directional guide of the guided methods: auto (a hemisphere grid unless every
+    /// surface is a mirror or glass; see the printed plan), hemisphere, or none.
+    #[arg(long, default_value = "auto", value_parser = ["auto", "hemisphere", "none"])]
     guide: String,
     /// Random seed.
     #[arg(long, default_value_t = 1)]
@@ -342,6 +343,12 @@ impl TraceOptions {
         }
     }
 
+    /// The directional guide's settings if `method` guides and `--guide` is not `none`
+    /// (the plan may still leave it out).
+    fn directional_guide(&self, method: Method, settings: HemisphereGridSettings) -> Option<HemisphereGridSettings> {
+        (method.uses_guide() && self.guide != "none").then_some(settings)
+    }
+
     /// What to build for light selection under `method`.
     fn light_request(&self, method: Method) -> Result<LightRequest, String> {
         if !(self.light_guide_mib.is_finite() && self.light_guide_mib > 0.0) {
@@ -459,12 +466,22 @@ pub fn prepare_with_lights(
     let intersector = SceneIntersector::build(&scene.triangles, intersector)?;
     let bvh_seconds = start.elapsed().as_secs_f64();
     let start = Instant::now();
-    let guide = match guide {
-        Some(settings) => Some(HemisphereGrid::build(&scene.triangles, settings).map_err(|e| format!("guide: {e}"))?),
-        None => None,
-    };
-    let plan =
+    let mut plan =
         GuidePlan::new(&scene, guide.is_some(), lights.next_event_estimation, lights.selection, lights.environment);
+    let guide = match guide {
+        Some(settings) if plan.directions => {
+            let grid = HemisphereGrid::build(&scene.triangles, settings).map_err(|e| format!("guide: {e}"))?;
+            let stats = grid.stats();
+            plan.note(format!(
+                "hemisphere grid: {} probes × {} patches, {} KiB",
+                stats.regions,
+                stats.entries_per_region,
+                stats.memory_bytes >> 10
+            ));
+            Some(grid)
+        }
+        _ => None,
+    };
     let (low, high) = scene
         .triangles
         .iter()
@@ -476,10 +493,15 @@ pub fn prepare_with_lights(
                 && lights.next_event_estimation
                 && !scene.lights.is_empty() =>
         {
-            Some(
-                LightGuide::new(low, high, &scene.lights.powers(), settings)
-                    .map_err(|e| format!("light guide: {e}"))?,
-            )
+            let light_guide = LightGuide::new(low, high, &scene.lights.powers(), settings)
+                .map_err(|e| format!("light guide: {e}"))?;
+            let [x, y, z] = light_guide.resolution();
+            plan.note(format!(
+                "light guide: {x}×{y}×{z} cells × {} lights, {} KiB",
+                light_guide.light_count(),
+                light_guide.memory_bytes() >> 10
+            ));
+            Some(light_guide)
         }
         _ => None,
     };
@@ -492,7 +514,17 @@ pub fn prepare_with_lights(
             let tiles = EnvironmentTiles::new(width, height, &luminance, settings.tiles)
                 .map_err(|e| format!("environment tiles: {e}"))?;
             let sun = environment.sun.map(|sun| sun.disk);
-            Some(EnvTileGuide::new(low, high, tiles, sun, settings).map_err(|e| format!("environment guide: {e}"))?)
+            let environment_guide =
+                EnvTileGuide::new(low, high, tiles, sun, settings).map_err(|e| format!("environment guide: {e}"))?;
+            let [x, y, z] = environment_guide.resolution();
+            let [u, v] = environment_guide.tiles().tiles();
+            plan.note(format!(
+                "environment guide: {x}×{y}×{z} cells × {u}×{v} tiles{}, {} KiB tables + {} KiB texel CDFs",
+                if environment_guide.sun().is_some() { " + sun" } else { "" },
+                environment_guide.table_bytes() >> 10,
+                environment_guide.tiles().memory_bytes() >> 10
+            ));
+            Some(environment_guide)
         }
         _ => None,
     };
@@ -706,7 +738,7 @@ fn run_render(args: &RenderArgs) -> Result<(), String> {
     let mut prepared = prepare_with_lights(
         &args.scene,
         options.intersector,
-        args.integrator.uses_guide().then_some(guide_settings),
+        options.directional_guide(args.integrator, guide_settings),
         options.light_request(args.integrator)?,
     )?;
     for warning in &prepared.scene.warnings {
@@ -812,7 +844,7 @@ fn run_compare(args: &CompareArgs) -> Result<(), String> {
         let mut prepared = prepare_with_lights(
             &args.scene,
             options.intersector,
-            method.uses_guide().then_some(guide_settings),
+            options.directional_guide(method, guide_settings),
             options.light_request(method)?,
         )?;
         eprintln!("{name}: plan: {}", prepared.plan.describe());

@@ -2,12 +2,71 @@
 //! scene gets nothing it does not need.
 
 use crate::integrator::{EnvironmentSampling, LightSelection};
+use crate::material::Surface;
 use crate::scene::Scene;
 
 /// Fewest emissive triangles for which `--light-selection auto` learns light selection:
 /// with a handful of lights, power selection is already close and the learned tables
 /// would only cost time.
 pub const LEARNED_SELECTION_MIN_LIGHTS: usize = 8;
+
+/// What the plan decides from: facts of the scene.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SceneFacts {
+    /// Triangles with a diffuse material.
+    pub diffuse_triangles: usize,
+    /// Triangles with a rough conductor.
+    pub glossy_triangles: usize,
+    /// Triangles with a delta material (mirror, glass): nothing to guide there.
+    pub delta_triangles: usize,
+    /// Emissive triangles.
+    pub area_lights: usize,
+    /// Whether there is an environment.
+    pub environment: bool,
+    /// Whether the environment has a sun.
+    pub sun: bool,
+    /// Length of the scene's bounding-box diagonal (scene units).
+    pub extent: f32,
+}
+
+impl SceneFacts {
+    /// The facts of `scene`.
+    pub fn of(scene: &Scene) -> Self {
+        let mut facts = SceneFacts {
+            area_lights: scene.lights.len(),
+            environment: scene.environment.is_some(),
+            sun: scene.environment.as_ref().is_some_and(|e| e.sun.is_some()),
+            ..Default::default()
+        };
+        let (mut low, mut high) = (glam::Vec3::INFINITY, glam::Vec3::NEG_INFINITY);
+        for (index, triangle) in scene.triangles.iter().enumerate() {
+            let material = scene.material(index as u32);
+            match material.surface {
+                _ if material.is_delta() => facts.delta_triangles += 1,
+                Surface::Diffuse { .. } => facts.diffuse_triangles += 1,
+                _ => facts.glossy_triangles += 1,
+            }
+            for v in triangle.vertices {
+                (low, high) = (low.min(v), high.max(v));
+            }
+        }
+        facts.extent = if low.x <= high.x { (high - low).length() } else { 0.0 };
+        facts
+    }
+
+    /// The facts in one line.
+    pub fn describe(&self) -> String {
+        let environment = match (self.environment, self.sun) {
+            (false, _) => "no environment",
+            (true, false) => "an environment",
+            (true, true) => "an environment with a sun",
+        };
+        format!(
+            "scene: {} diffuse, {} glossy, {} delta triangles; {} emissive; {environment}; extent {:.3}",
+            self.diffuse_triangles, self.glossy_triangles, self.delta_triangles, self.area_lights, self.extent
+        )
+    }
+}
 
 /// The learners a render uses and why.
 #[derive(Clone, Debug, PartialEq)]
@@ -24,7 +83,8 @@ pub struct GuidePlan {
 }
 
 impl GuidePlan {
-    /// Decides from the scene: `directions` for guided methods; `requested` light
+    /// Decides from the scene: `directions` for guided methods (unless every surface is
+    /// a mirror or glass, where nothing could use it); `requested` light
     /// selection, or (None, auto) learned selection when next-event estimation runs over
     /// at least [`LEARNED_SELECTION_MIN_LIGHTS`] emissive triangles, power otherwise;
     /// `requested_environment` sampling, or (None, auto) tiles whenever next-event
@@ -36,12 +96,16 @@ impl GuidePlan {
         requested: Option<LightSelection>,
         requested_environment: Option<EnvironmentSampling>,
     ) -> Self {
-        let lights = scene.lights.len();
-        let mut reasons = vec![if directions {
-            "directions: hemisphere grid (guided method)".to_string()
-        } else {
-            "directions: none (unguided method)".to_string()
-        }];
+        let facts = SceneFacts::of(scene);
+        let lights = facts.area_lights;
+        let guidable = facts.diffuse_triangles + facts.glossy_triangles > 0;
+        let mut reasons = vec![facts.describe()];
+        reasons.push(match (directions, guidable) {
+            (true, true) => "directions: hemisphere grid (guided method)".to_string(),
+            (true, false) => "directions: none (every surface is a mirror or glass: nothing to guide)".to_string(),
+            (false, _) => "directions: none (unguided method, or --guide none)".to_string(),
+        });
+        let directions = directions && guidable;
         let light_selection = match requested {
             Some(selection) => {
                 reasons.push(format!("light selection: {} (asked for)", selection.name()));
@@ -83,6 +147,11 @@ impl GuidePlan {
             }
         };
         Self { directions, light_selection, environment_sampling, reasons }
+    }
+
+    /// Adds a line about what was built (sizes, once known).
+    pub fn note(&mut self, line: String) {
+        self.reasons.push(line);
     }
 
     /// The plan in one line.

@@ -2,6 +2,8 @@
 //! with one lamp, or for a method without next-event estimation; a learned one for 64
 //! lights; no directional guide for unguided methods; nothing for an absent environment.
 
+mod support;
+
 use std::path::Path;
 
 use guiding_core::{EnvTileGuideSettings, HemisphereGridSettings, LightGuideSettings};
@@ -80,4 +82,48 @@ fn an_environment_guide_is_built_only_where_an_environment_meets_next_event_esti
     let request = LightRequest::new(None, Some(EnvironmentSampling::Luminance), true);
     let prepared = prepare_with_lights(&path, IntersectorChoice::default(), None, request).unwrap();
     assert!(prepared.environment_guide.is_none());
+}
+
+#[test]
+fn a_scene_of_mirrors_and_glass_gets_no_directional_guide() {
+    let folder = support::temp_folder("plan-mirrors");
+    let scene = serde_json::json!({
+        "format": 1,
+        "camera": { "eye": [0, 1, 3], "target": [0, 0, 0], "up": [0, 1, 0], "fov_y_deg": 40, "width": 8, "height": 8 },
+        "materials": {
+            "mirror": { "type": "conductor", "specular": [0.9, 0.9, 0.9], "alpha": 0 },
+            "glass": { "type": "dielectric", "ior": 1.5 }
+        },
+        "shapes": [
+            { "type": "quad", "material": "mirror", "corners": [[-1, 0, 1], [1, 0, 1], [1, 0, -1], [-1, 0, -1]] },
+            { "type": "quad", "material": "glass", "corners": [[-1, 1, 1], [1, 1, 1], [1, 1, -1], [-1, 1, -1]] }
+        ],
+        "environment": { "type": "constant", "radiance": [1, 1, 1] }
+    });
+    let path = support::write_scene(&folder, &scene);
+    let guide = Some(HemisphereGridSettings { budget_bytes: 64 << 10, ..Default::default() });
+    let prepared =
+        prepare_with_lights(&path, IntersectorChoice::default(), guide, LightRequest::new(None, None, true)).unwrap();
+    assert!(!prepared.plan.directions && prepared.guide.is_none(), "{}", prepared.plan.describe());
+    assert!(
+        prepared.plan.describe().contains("0 diffuse, 0 glossy, 4 delta triangles"),
+        "{}",
+        prepared.plan.describe()
+    );
+    // It still renders (BSDF and environment sampling only).
+    let settings = reference_tracer::render::RenderSettings {
+        integrator: reference_tracer::integrator::IntegratorSettings {
+            method: Method::GuidedNee,
+            ..Default::default()
+        },
+        budget: reference_tracer::render::Budget::SamplesPerPixel(2),
+        seed: 1,
+        train_seconds: 0.0,
+    };
+    let mut prepared = prepared;
+    let learners =
+        reference_tracer::render::Learners { environment: prepared.environment_guide.as_mut(), ..Default::default() };
+    let (image, _) =
+        reference_tracer::render::render(&prepared.scene, &prepared.intersector, learners, &settings, |_| {});
+    assert!(image.pixels.iter().all(|p| p.is_finite()) && image.mean().max_element() > 0.0);
 }
