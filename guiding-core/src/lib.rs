@@ -29,6 +29,8 @@ pub mod environment;
 pub mod hemisphere;
 #[cfg(feature = "lights")]
 pub mod lights;
+#[cfg(feature = "mixture")]
+pub mod mixture;
 
 pub use bytes::reseal_checksum;
 pub use distribution::{
