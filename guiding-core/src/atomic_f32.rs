@@ -33,3 +33,12 @@ pub(crate) fn increment_saturating(counter: &AtomicU32) -> u32 {
         Ok(previous) | Err(previous) => previous,
     }
 }
+
+/// One step of a running average: counts the sample in `count` and blends `target` into
+/// `value` with α = 1/(1+n), n the count before, so `value` is the mean of all targets.
+#[cfg(any(feature = "lights", feature = "env"))]
+pub(crate) fn running_average(value: &AtomicU32, count: &AtomicU32, target: f32) {
+    let n = increment_saturating(count);
+    let alpha = (1.0 / (1.0 + n as f64)) as f32;
+    update(value, |v| crate::update_rule::blend(v, target, alpha, 0.0));
+}

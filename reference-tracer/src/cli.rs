@@ -5,7 +5,6 @@ use std::time::Instant;
 
 use crate::scene_intersector::{IntersectorChoice, SceneIntersector};
 use clap::{Args, Parser, Subcommand};
-use glam::Vec3;
 use guiding_core::environment::EnvironmentTiles;
 use guiding_core::{
     EnvTileGuide, EnvTileGuideSettings, Guide, HemisphereGrid, HemisphereGridSettings, HemisphereMapping,
@@ -182,7 +181,7 @@ pub struct TraceOptions {
     /// Next-event light selection: auto (learned with many lights, else power; see the
     /// printed plan), uniform, power, or learned (Eq. 3, per grid cell).
     #[arg(long, default_value = "auto", value_parser = parse_light_selection)]
-    light_selection: SelectionChoice,
+    light_selection: Auto<LightSelection>,
     /// Learned selection's rule: mean (occluded rays count as zero), unoccluded (the seed's
     /// Eq. 3: only arriving rays), or visibility (arrived / shot, times power).
     #[arg(long, default_value = "mean", value_parser = parse_light_rule)]
@@ -193,7 +192,7 @@ pub struct TraceOptions {
     /// Next-event environment sampling: auto (tiles when there is an environment; see the
     /// printed plan), luminance (plain importance sampling), or tiles (learned per cell).
     #[arg(long, default_value = "auto", value_parser = parse_environment_sampling)]
-    env_sampling: EnvironmentChoice,
+    env_sampling: Auto<EnvironmentSampling>,
     /// Environment tiles across × down the lat-long map. 32x16 measured best on window
     /// (against 8x4, 16x8 and 64x32; 2 seeds × 15 s).
     #[arg(long, default_value = "32x16", value_parser = parse_patches)]
@@ -207,29 +206,27 @@ pub struct TraceOptions {
     env_guide_mib: f64,
 }
 
-/// `--env-sampling`: a choice, or `None` for auto (the plan decides).
+/// A choice given on the command line, or `None` for `auto` (the plan decides). A
+/// newtype, as clap reads a bare `Option` field as "may be absent".
 #[derive(Clone, Copy, Debug)]
-struct EnvironmentChoice(Option<EnvironmentSampling>);
+struct Auto<T>(Option<T>);
 
-fn parse_environment_sampling(s: &str) -> Result<EnvironmentChoice, String> {
-    if s == "auto" {
-        Ok(EnvironmentChoice(None))
-    } else {
-        EnvironmentSampling::from_name(s).map(|sampling| EnvironmentChoice(Some(sampling)))
+impl<T> Auto<T> {
+    fn parse(s: &str, parse: impl Fn(&str) -> Result<T, String>) -> Result<Self, String> {
+        if s == "auto" {
+            Ok(Auto(None))
+        } else {
+            parse(s).map(|choice| Auto(Some(choice)))
+        }
     }
 }
 
-/// `--light-selection`: a choice, or `None` for auto (the plan decides). A newtype, as
-/// clap reads a bare `Option` field as "may be absent".
-#[derive(Clone, Copy, Debug)]
-struct SelectionChoice(Option<LightSelection>);
+fn parse_environment_sampling(s: &str) -> Result<Auto<EnvironmentSampling>, String> {
+    Auto::parse(s, EnvironmentSampling::from_name)
+}
 
-fn parse_light_selection(s: &str) -> Result<SelectionChoice, String> {
-    if s == "auto" {
-        Ok(SelectionChoice(None))
-    } else {
-        LightSelection::from_name(s).map(|selection| SelectionChoice(Some(selection)))
-    }
+fn parse_light_selection(s: &str) -> Result<Auto<LightSelection>, String> {
+    Auto::parse(s, LightSelection::from_name)
 }
 
 /// One method of `compare`: METHOD[:LIGHT_SELECTION][+ENVIRONMENT_SAMPLING].
@@ -482,11 +479,7 @@ pub fn prepare_with_lights(
         }
         _ => None,
     };
-    let (low, high) = scene
-        .triangles
-        .iter()
-        .flat_map(|t| t.vertices)
-        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(l, h), v| (l.min(v), h.max(v)));
+    let (low, high) = scene.bounds();
     let light_guide = match lights.settings {
         settings
             if plan.light_selection == LightSelection::Learned
@@ -838,8 +831,8 @@ fn run_compare(args: &CompareArgs) -> Result<(), String> {
     for compared in &args.methods {
         let method = compared.method;
         let mut options = options.clone();
-        options.light_selection = SelectionChoice(compared.selection.or(options.light_selection.0));
-        options.env_sampling = EnvironmentChoice(compared.environment.or(options.env_sampling.0));
+        options.light_selection = Auto(compared.selection.or(options.light_selection.0));
+        options.env_sampling = Auto(compared.environment.or(options.env_sampling.0));
         let name = compared.name();
         let mut prepared = prepare_with_lights(
             &args.scene,

@@ -302,11 +302,7 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
         environment_guide: Option<&'a EnvTileGuide>,
         settings: IntegratorSettings,
     ) -> Self {
-        let (low, high) = scene
-            .triangles
-            .iter()
-            .flat_map(|t| t.vertices)
-            .fold((Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)), |(l, h), v| (l.min(v), h.max(v)));
+        let (low, high) = scene.bounds();
         let ray_epsilon = 1e-5 * (high - low).length().max(f32::MIN_POSITIVE);
         let environment_choice = match (scene.environment.is_some(), scene.lights.is_empty()) {
             (true, true) => 1.0,

@@ -38,18 +38,15 @@ impl SceneFacts {
             sun: scene.environment.as_ref().is_some_and(|e| e.sun.is_some()),
             ..Default::default()
         };
-        let (mut low, mut high) = (glam::Vec3::INFINITY, glam::Vec3::NEG_INFINITY);
-        for (index, triangle) in scene.triangles.iter().enumerate() {
+        for index in 0..scene.triangles.len() {
             let material = scene.material(index as u32);
             match material.surface {
                 _ if material.is_delta() => facts.delta_triangles += 1,
                 Surface::Diffuse { .. } => facts.diffuse_triangles += 1,
                 _ => facts.glossy_triangles += 1,
             }
-            for v in triangle.vertices {
-                (low, high) = (low.min(v), high.max(v));
-            }
         }
+        let (low, high) = scene.bounds();
         facts.extent = if low.x <= high.x { (high - low).length() } else { 0.0 };
         facts
     }

@@ -12,7 +12,7 @@ use crate::cdf::{build_cdf, cdf_probability, sample_cdf};
 use crate::cell_grid::CellGrid;
 use crate::distribution::{DirectionSample, DirectionalDistribution};
 use crate::error::Error;
-use crate::update_rule::{blend, classify_target, UpdateOutcome};
+use crate::update_rule::{classify_target, UpdateOutcome};
 
 use super::settings::{EnvTileGuideSettings, ENTRY_BYTES};
 use super::sun::SunDisk;
@@ -164,9 +164,7 @@ impl EnvTileGuide {
         };
         let target = integrand / conditional_pdf;
         let index = cell * self.lobes + lobe;
-        let n = atomic_f32::increment_saturating(&self.updates[index]);
-        let alpha = (1.0 / (1.0 + n as f64)) as f32;
-        atomic_f32::update(&self.values[index], |v| blend(v, target, alpha, 0.0));
+        atomic_f32::running_average(&self.values[index], &self.updates[index], target);
         UpdateOutcome::Accepted
     }
 

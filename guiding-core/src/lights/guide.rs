@@ -10,7 +10,7 @@ use crate::atomic_f32;
 use crate::cdf::{build_cdf, cdf_probability, sample_cdf};
 use crate::cell_grid::CellGrid;
 use crate::error::Error;
-use crate::update_rule::{blend, classify_target, UpdateOutcome};
+use crate::update_rule::{classify_target, UpdateOutcome};
 
 use super::settings::{LightGuideSettings, LightUpdateRule, ENTRY_BYTES, MAX_LIGHTS};
 
@@ -142,11 +142,7 @@ impl LightGuide {
         };
         let index = self.row(cell).start + light as usize;
         atomic_f32::increment_saturating(&self.shots[index]);
-        let learn = |target: f32| {
-            let n = atomic_f32::increment_saturating(&self.updates[index]);
-            let alpha = (1.0 / (1.0 + n as f64)) as f32;
-            atomic_f32::update(&self.values[index], |v| blend(v, target, alpha, 0.0));
-        };
+        let learn = |target: f32| atomic_f32::running_average(&self.values[index], &self.updates[index], target);
         match (self.settings.rule, unoccluded) {
             (LightUpdateRule::UnoccludedAverage, true) => learn(contribution),
             (LightUpdateRule::MeanContribution, _) => learn(if unoccluded { contribution } else { 0.0 }),

@@ -148,6 +148,14 @@ impl Scene {
     pub fn material(&self, triangle: u32) -> &Material {
         &self.materials[self.triangle_materials[triangle as usize] as usize]
     }
+
+    /// The bounding box of every triangle, (low, high); inverted (∞, −∞) for no triangles.
+    pub fn bounds(&self) -> (Vec3, Vec3) {
+        self.triangles
+            .iter()
+            .flat_map(|t| t.vertices)
+            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(low, high), v| (low.min(v), high.max(v)))
+    }
 }
 
 fn finite3(values: [f32; 3]) -> Option<Vec3> {
