@@ -6,8 +6,9 @@
 //!   0.01), and a deliberately wrong pdf fails it;
 //! - update streams of any f32 (NaN, ±∞, negative, 1e±30) keep every Q finite and above
 //!   the floor, and rejections are counted;
-//! - α = 0 keeps Q, α = 1 replaces it, α = 1/(1+n) converges to the targets' mean;
-//! - concurrent updates from several threads lose no visit and tear no value;
+//! - concurrent updates from several threads lose no visit;
+//! - for tables (`table_rule_properties!`): α = 0 keeps Q, α = 1 replaces it,
+//!   α = 1/(1+n) converges to the targets' mean, and concurrent updates tear no value;
 //! - serialization round-trips exactly; truncated, bit-flipped or re-sealed damaged
 //!   buffers give an error or a valid guide, never a panic.
 
@@ -22,7 +23,7 @@ use guiding_core::{
     UniformHemisphere, UpdateOutcome, UpdateRule,
 };
 use proptest::prelude::*;
-use support::{RotatedPdf, TableAccess};
+use support::{GuideAccess, RotatedPdf, TableAccess};
 
 fn rule(learning_rate: LearningRate) -> UpdateRule {
     UpdateRule { learning_rate, integral: IntegralEstimator::BsdfWeightedSum }
@@ -30,7 +31,7 @@ fn rule(learning_rate: LearningRate) -> UpdateRule {
 
 /// A table learned from a synthetic radiance field: a bright lobe around `light` on a
 /// dim background, taught by uniformly sampled directions.
-fn learn_lobe<G: TableAccess>(guide: &G, region: G::Region, normal: Vec3, light: Vec3, rng: &mut Pcg32) {
+fn learn_lobe<G: GuideAccess>(guide: &G, region: G::Region, normal: Vec3, light: Vec3, rng: &mut Pcg32) {
     let hemisphere = UniformHemisphere::new(normal);
     for _ in 0..20_000 {
         let d = hemisphere.sample(rng.next_vec2()).direction;
@@ -45,7 +46,7 @@ fn extreme_table(entries: usize, rng: &mut Pcg32) -> Vec<f32> {
 }
 
 /// Flat, random, learned and extreme tables, each set on every test region and rebuilt.
-fn table_cases<G: TableAccess>(make: &impl Fn(UpdateRule) -> G) -> Vec<(String, G)> {
+fn table_cases<G: GuideAccess>(make: &impl Fn(UpdateRule) -> G) -> Vec<(String, G)> {
     let mut rng = Pcg32::new(42, 7);
     let mut cases = Vec::new();
     let flat = make(UpdateRule::default());
@@ -74,17 +75,17 @@ fn table_cases<G: TableAccess>(make: &impl Fn(UpdateRule) -> G) -> Vec<(String, 
     cases
 }
 
-fn check_normalization<G: TableAccess>(make: &impl Fn(UpdateRule) -> G) {
+fn check_normalization<G: GuideAccess>(make: &impl Fn(UpdateRule) -> G) {
     for (name, guide) in table_cases(make) {
         for (region, normal) in guide.test_regions() {
             let distribution = guide.distribution(region);
-            let total = pdf_integral(&|d| distribution.pdf(d), normal, 64, 6);
+            let total = pdf_integral(&|d| distribution.pdf(d), normal, 64, guide.integration_depth());
             assert!((total - 1.0).abs() < 1e-3, "{name} table: pdf integrates to {total}");
         }
     }
 }
 
-fn check_chi_square<G: TableAccess>(make: &impl Fn(UpdateRule) -> G) {
+fn check_chi_square<G: GuideAccess>(make: &impl Fn(UpdateRule) -> G) {
     let cases = table_cases(make);
     let tests = (cases.len() * cases[0].1.test_regions().len()) as u32;
     let significance = sidak_significance(0.01, tests);
@@ -98,7 +99,7 @@ fn check_chi_square<G: TableAccess>(make: &impl Fn(UpdateRule) -> G) {
     }
 }
 
-fn check_broken_pdf_fails<G: TableAccess>(make: &impl Fn(UpdateRule) -> G) {
+fn check_broken_pdf_fails<G: GuideAccess>(make: &impl Fn(UpdateRule) -> G) {
     let cases = table_cases(make);
     let (_, learned) = cases.iter().find(|(name, _)| name == "learned").expect("learned case");
     for (region, normal) in learned.test_regions() {
@@ -135,7 +136,7 @@ fn arbitrary_direction() -> impl Strategy<Value = Vec3> {
     ]
 }
 
-fn check_update_stream<G: TableAccess>(guide: &G, stream: &[(f32, Vec3)]) -> Result<(), TestCaseError> {
+fn check_update_stream<G: GuideAccess>(guide: &G, stream: &[(f32, Vec3)]) -> Result<(), TestCaseError> {
     let (region, _) = guide.test_regions()[0];
     let before = guide.stats();
     let (mut non_finite, mut negative) = (0, 0);
@@ -189,7 +190,9 @@ fn check_simple_average_converges<G: TableAccess>(make: &impl Fn(UpdateRule) -> 
     assert!((q - 2.5).abs() < 0.025, "Q = {q} after 1e5 updates, mean 2.5");
 }
 
-fn check_concurrent_updates<G: TableAccess>(make: &impl Fn(UpdateRule) -> G) {
+/// Updates one region from four threads at once, targets 1 and 3 alternating, and
+/// checks no visit was lost; returns the guide for structure-specific checks.
+fn check_concurrent_updates<G: GuideAccess>(make: &impl Fn(UpdateRule) -> G) -> G {
     let guide = make(rule(LearningRate::SimpleAverage));
     let (region, normal) = guide.test_regions()[0];
     let before = guide.stats().accepted_updates;
@@ -202,7 +205,6 @@ fn check_concurrent_updates<G: TableAccess>(make: &impl Fn(UpdateRule) -> G) {
                 let mut rng = Pcg32::new(100 + t, t);
                 let hemisphere = UniformHemisphere::new(normal);
                 for i in 0..per_thread {
-                    // Only two targets: any other value in a table would be a torn write.
                     let target = if i % 2 == 0 { 1.0 } else { 3.0 };
                     let d = hemisphere.sample(rng.next_vec2()).direction;
                     if guide.update(region, d, target) == UpdateOutcome::Accepted {
@@ -214,13 +216,21 @@ fn check_concurrent_updates<G: TableAccess>(make: &impl Fn(UpdateRule) -> G) {
     });
     assert_eq!(accepted.load(Ordering::Relaxed), threads * per_thread);
     assert_eq!(guide.stats().accepted_updates - before, threads * per_thread, "visits lost");
+    assert!(guide.validate().is_ok());
+    assert!(guide.all_values().iter().all(|q| q.is_finite() && *q >= guide.floor()));
+    guide
+}
+
+/// With only targets 1 and 3 in play, any other Q in a table is a torn write.
+fn check_no_torn_values<G: TableAccess>(make: &impl Fn(UpdateRule) -> G) {
+    let guide = check_concurrent_updates(make);
     let initial = make(UpdateRule::default()).all_values()[0];
     for q in guide.all_values() {
         assert!(q == initial || (1.0..=3.0).contains(&q), "torn or stray value {q}");
     }
 }
 
-fn check_round_trip<G: TableAccess>(make: &impl Fn(UpdateRule) -> G) {
+fn check_round_trip<G: GuideAccess>(make: &impl Fn(UpdateRule) -> G) {
     for (name, guide) in table_cases(make) {
         let bytes = guide.to_bytes();
         let loaded = G::from_bytes(&bytes).unwrap_or_else(|e| panic!("{name}: {e}"));
@@ -237,7 +247,7 @@ fn check_round_trip<G: TableAccess>(make: &impl Fn(UpdateRule) -> G) {
     }
 }
 
-fn check_damaged_buffer<G: TableAccess>(
+fn check_damaged_buffer<G: GuideAccess>(
     bytes: &[u8],
     cut: usize,
     flips: &[(usize, u8)],
@@ -292,17 +302,7 @@ macro_rules! guide_properties {
             }
 
             #[test]
-            fn learning_rates_zero_and_one() {
-                check_rates_zero_and_one(&make);
-            }
-
-            #[test]
-            fn simple_average_converges_to_the_mean() {
-                check_simple_average_converges(&make);
-            }
-
-            #[test]
-            fn concurrent_updates_lose_nothing_and_tear_nothing() {
+            fn concurrent_updates_lose_no_visit() {
                 check_concurrent_updates(&make);
             }
 
@@ -325,7 +325,8 @@ macro_rules! guide_properties {
                     guide.set_entries(region, &table);
                     guide.rebuild_sampling();
                     let distribution = guide.distribution(region);
-                    let total = pdf_integral(&|d| distribution.pdf(d), normal, 64, 4);
+                    let depth = guide.integration_depth().min(4);
+                    let total = pdf_integral(&|d| distribution.pdf(d), normal, 64, depth);
                     prop_assert!((total - 1.0).abs() < 1e-3, "integral {}", total);
                 }
             }
@@ -374,11 +375,46 @@ macro_rules! guide_properties {
     };
 }
 
-guide_properties!(hemisphere_cylindrical, guiding_core::HemisphereGrid, |rule| support::hemisphere_grid(
-    HemisphereMapping::Cylindrical,
-    rule
-));
-guide_properties!(hemisphere_concentric, guiding_core::HemisphereGrid, |rule| support::hemisphere_grid(
-    HemisphereMapping::ConcentricSquare,
-    rule
-));
+/// The Eq. (1) checks of guides whose entries take one target at a time.
+macro_rules! table_rule_properties {
+    ($module:ident, $guide:ty, $make:expr) => {
+        mod $module {
+            use super::*;
+
+            fn make(rule: UpdateRule) -> $guide {
+                ($make)(rule)
+            }
+
+            #[test]
+            fn learning_rates_zero_and_one() {
+                check_rates_zero_and_one(&make);
+            }
+
+            #[test]
+            fn simple_average_converges_to_the_mean() {
+                check_simple_average_converges(&make);
+            }
+
+            #[test]
+            fn concurrent_updates_tear_no_value() {
+                check_no_torn_values(&make);
+            }
+        }
+    };
+}
+
+fn cylindrical(rule: UpdateRule) -> guiding_core::HemisphereGrid {
+    support::hemisphere_grid(HemisphereMapping::Cylindrical, rule)
+}
+
+fn concentric(rule: UpdateRule) -> guiding_core::HemisphereGrid {
+    support::hemisphere_grid(HemisphereMapping::ConcentricSquare, rule)
+}
+
+guide_properties!(hemisphere_cylindrical, guiding_core::HemisphereGrid, cylindrical);
+guide_properties!(hemisphere_concentric, guiding_core::HemisphereGrid, concentric);
+table_rule_properties!(hemisphere_cylindrical_rules, guiding_core::HemisphereGrid, cylindrical);
+table_rule_properties!(hemisphere_concentric_rules, guiding_core::HemisphereGrid, concentric);
+// The mixture learns in batches (applied between passes): its rate checks live beside it
+// in guiding-core (mixture::guide tests).
+guide_properties!(gaussian_mixture, guiding_core::GaussianMixture, support::gaussian_mixture);

@@ -2,7 +2,35 @@
 
 use alloc::vec::Vec;
 
-use crate::error::DecodeError;
+use crate::error::{DecodeError, Error};
+use crate::update_rule::{IntegralEstimator, LearningRate, UpdateRule};
+
+/// The first bytes of every serialized guide.
+pub(crate) const MAGIC: &[u8; 8] = b"LODESTAR";
+
+/// [`DecodeError::InvalidField`] as an [`Error`].
+pub(crate) fn invalid_field(field: &'static str, index: usize, requirement: &'static str) -> Error {
+    Error::Decode(DecodeError::InvalidField { field, index, requirement })
+}
+
+/// Checks the magic, checksum, format version and structure tag of a serialized guide and
+/// returns a reader positioned after them.
+pub(crate) fn open_guide_bytes(bytes: &[u8], version: u32, tag: u32) -> Result<ByteReader<'_>, Error> {
+    if bytes.len() < MAGIC.len() || &bytes[..MAGIC.len()] != MAGIC {
+        return Err(DecodeError::BadMagic.into());
+    }
+    let mut r = ByteReader::verified(bytes)?;
+    r.take(MAGIC.len())?;
+    let found = r.u32()?;
+    if found != version {
+        return Err(DecodeError::UnsupportedVersion { found, supported: version }.into());
+    }
+    let structure = r.u32()?;
+    if structure != tag {
+        return Err(DecodeError::WrongStructure { found: structure, expected: tag }.into());
+    }
+    Ok(r)
+}
 
 /// FNV-1a, 64 bit. Every step is a bijection of the state, so changing any single byte
 /// always changes the checksum; that is the damage this format must detect.
@@ -45,6 +73,36 @@ impl ByteWriter {
 
     pub(crate) fn put_f32(&mut self, value: f32) {
         self.put_bytes(&value.to_le_bytes());
+    }
+
+    /// Two u32 words, low first.
+    pub(crate) fn put_u64(&mut self, value: u64) {
+        self.put_u32(value as u32);
+        self.put_u32((value >> 32) as u32);
+    }
+
+    /// The magic, the format version and the structure tag.
+    pub(crate) fn put_header(&mut self, version: u32, tag: u32) {
+        self.put_bytes(MAGIC);
+        self.put_u32(version);
+        self.put_u32(tag);
+    }
+
+    /// u32 learning-rate kind · f32 its parameter · u32 integral estimator.
+    pub(crate) fn put_update_rule(&mut self, rule: &UpdateRule) {
+        let (kind, parameter) = match rule.learning_rate {
+            LearningRate::Exponential { alpha } => (0, alpha),
+            LearningRate::SimpleAverage => (1, 0.0),
+            LearningRate::RegionVisits => (2, 0.0),
+            LearningRate::Global { exponent } => (3, exponent),
+        };
+        self.put_u32(kind);
+        self.put_f32(parameter);
+        self.put_u32(match rule.integral {
+            IntegralEstimator::BsdfWeightedSum => 0,
+            IntegralEstimator::StratifiedPatches => 1,
+            IntegralEstimator::MaxEntry => 2,
+        });
     }
 
     /// Appends the checksum of everything written so far and returns the buffer.
@@ -108,6 +166,37 @@ impl<'a> ByteReader<'a> {
 
     pub(crate) fn f32(&mut self) -> Result<f32, DecodeError> {
         Ok(f32::from_bits(self.u32()?))
+    }
+
+    /// Two u32 words, low first.
+    pub(crate) fn u64(&mut self) -> Result<u64, DecodeError> {
+        let low = self.u32()? as u64;
+        Ok(low | (self.u32()? as u64) << 32)
+    }
+
+    pub(crate) fn vec3(&mut self) -> Result<glam::Vec3, DecodeError> {
+        Ok(glam::Vec3::new(self.f32()?, self.f32()?, self.f32()?))
+    }
+
+    /// What [`ByteWriter::put_update_rule`] wrote (ranges are checked by the caller's
+    /// settings validation).
+    pub(crate) fn update_rule(&mut self) -> Result<UpdateRule, Error> {
+        let kind = self.u32()?;
+        let parameter = self.f32()?;
+        let learning_rate = match kind {
+            0 => LearningRate::Exponential { alpha: parameter },
+            1 => LearningRate::SimpleAverage,
+            2 => LearningRate::RegionVisits,
+            3 => LearningRate::Global { exponent: parameter },
+            _ => return Err(invalid_field("learning_rate", 0, "a kind in 0..=3")),
+        };
+        let integral = match self.u32()? {
+            0 => IntegralEstimator::BsdfWeightedSum,
+            1 => IntegralEstimator::StratifiedPatches,
+            2 => IntegralEstimator::MaxEntry,
+            _ => return Err(invalid_field("integral", 0, "a kind in 0..=2")),
+        };
+        Ok(UpdateRule { learning_rate, integral })
     }
 
     /// Fails unless every byte was read.

@@ -108,7 +108,10 @@ pub enum DecodeError {
 
 /// `Ok` when `ok`, else [`Error::InvalidSetting`] naming the setting: the check every
 /// settings `validate` is made of.
-#[cfg_attr(not(any(feature = "hemisphere", feature = "lights", feature = "env")), allow(dead_code))]
+#[cfg_attr(
+    not(any(feature = "hemisphere", feature = "lights", feature = "env", feature = "mixture")),
+    allow(dead_code)
+)]
 pub(crate) fn require(ok: bool, name: &'static str, value: f64, requirement: &'static str) -> Result<(), Error> {
     if ok {
         Ok(())

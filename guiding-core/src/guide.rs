@@ -53,6 +53,15 @@ pub trait Guide: Sync + Sized {
     /// targets are rejected and counted, never stored.
     fn update(&self, region: Self::Region, direction: Vec3, target: f32) -> UpdateOutcome;
 
+    /// [`update`](Self::update) for a direction the renderer drew with density `pdf`
+    /// (per steradian). Tables average per entry and need no density (the default
+    /// ignores it); guides that fit a density to the stream (the mixture) weight the
+    /// sample by `target / pdf`, so directions drawn often do not count more.
+    fn update_sampled(&self, region: Self::Region, direction: Vec3, target: f32, pdf: f32) -> UpdateOutcome {
+        let _ = pdf;
+        self.update(region, direction, target)
+    }
+
     /// Estimates `∫ Q(region, ωi) fs(ωi, wo) cos θi dωi` (radiance) with the guide's
     /// [`IntegralEstimator`](crate::IntegralEstimator); `u` jitters stratified estimators.
     fn estimate_integral<S: ScatteringFunction + ?Sized>(

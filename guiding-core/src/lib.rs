@@ -5,12 +5,15 @@
 extern crate alloc;
 
 // Shared by every guide structure; a build with none of them compiled in leaves them unused.
-#[cfg_attr(not(any(feature = "hemisphere", feature = "lights", feature = "env")), allow(dead_code))]
+#[cfg_attr(
+    not(any(feature = "hemisphere", feature = "lights", feature = "env", feature = "mixture")),
+    allow(dead_code)
+)]
 mod atomic_f32;
-#[cfg_attr(not(feature = "hemisphere"), allow(dead_code))]
+#[cfg_attr(not(any(feature = "hemisphere", feature = "mixture")), allow(dead_code))]
 mod bytes;
 pub mod cdf;
-#[cfg(any(feature = "lights", feature = "env"))]
+#[cfg(any(feature = "lights", feature = "env", feature = "mixture"))]
 mod cell_grid;
 mod distribution;
 mod error;
@@ -51,3 +54,5 @@ pub use environment::{EnvTileGuide, EnvTileGuideSettings};
 pub use hemisphere::{HemisphereGrid, HemisphereGridSettings, HemisphereMapping, PatchLayout, ProbeId, ProbeSet};
 #[cfg(feature = "lights")]
 pub use lights::{LightCell, LightChoice, LightGuide, LightGuideSettings, LightUpdateRule};
+#[cfg(feature = "mixture")]
+pub use mixture::{GaussianMixture, GaussianMixtureSettings, MixtureRegion};

@@ -7,16 +7,18 @@ use crate::scene_intersector::{IntersectorChoice, SceneIntersector};
 use clap::{Args, Parser, Subcommand};
 use guiding_core::environment::EnvironmentTiles;
 use guiding_core::{
-    EnvTileGuide, EnvTileGuideSettings, Guide, HemisphereGrid, HemisphereGridSettings, HemisphereMapping,
-    IntegralEstimator, LearningRate, LightGuide, LightGuideSettings, LightUpdateRule, PatchLayout, UpdateRule,
+    EnvTileGuide, EnvTileGuideSettings, GaussianMixtureSettings, HemisphereGrid, HemisphereGridSettings,
+    HemisphereMapping, IntegralEstimator, LearningRate, LightGuide, LightGuideSettings, LightUpdateRule, PatchLayout,
+    UpdateRule,
 };
 use indicatif::{ProgressBar, ProgressStyle};
 
+use crate::directional_guide::{DirectionalGuide, DirectionalGuideSettings, GuideStructure};
 use crate::integrator::{EnvironmentSampling, IntegratorSettings, LightSelection, Method};
 use crate::metrics::{image_error, ImageError};
 use crate::output::{read_image, write_exr, write_pfm, write_png, Image};
 use crate::plan::GuidePlan;
-use crate::render::{render, Budget, Learners, RenderSettings, RenderStatistics};
+use crate::render::{render, Budget, Learners, Progress, RenderSettings, RenderStatistics};
 use crate::scene::Scene;
 
 /// Lodestar: path guiding by reinforcement learning.
@@ -45,7 +47,8 @@ struct CompareArgs {
     scene: PathBuf,
     /// Comma-separated methods, e.g. pt,nee,guided,guided-nee; a method may name its
     /// light selection, e.g. nee:uniform,nee:power,nee:learned (else --light-selection),
-    /// and its environment sampling, e.g. nee+luminance,nee+tiles (else --env-sampling).
+    /// its environment sampling, e.g. nee+luminance,nee+tiles (else --env-sampling), and
+    /// its guide structure, e.g. guided-nee@mixture (else every one --guide lists).
     #[arg(long, value_delimiter = ',', value_parser = parse_compared_method, required = true)]
     methods: Vec<ComparedMethod>,
     /// Wall-clock seconds per method.
@@ -124,9 +127,14 @@ struct ReferenceArgs {
 #[derive(Debug, Args, Clone)]
 pub struct TraceOptions {
     /// The directional guide of the guided methods: auto (a hemisphere grid unless every
-    /// surface is a mirror or glass; see the printed plan), hemisphere, or none.
-    #[arg(long, default_value = "auto", value_parser = ["auto", "hemisphere", "none"])]
-    guide: String,
+    /// surface is a mirror or glass; see the printed plan), hemisphere (probes with
+    /// hemispheres of patches), mixture (grid cells with vMF mixtures), or none. compare
+    /// takes several, comma-separated, and runs each guided method with each.
+    #[arg(long, default_value = "auto", value_delimiter = ',', value_parser = parse_guide_choice)]
+    guide: Vec<GuideChoice>,
+    /// Lobes per mixture (--guide mixture), 1..=8.
+    #[arg(long, default_value_t = 6)]
+    mixture_lobes: usize,
     /// Random seed.
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -229,12 +237,40 @@ fn parse_light_selection(s: &str) -> Result<Auto<LightSelection>, String> {
     Auto::parse(s, LightSelection::from_name)
 }
 
-/// One method of `compare`: METHOD[:LIGHT_SELECTION][+ENVIRONMENT_SAMPLING].
+/// `--guide`: a structure, `auto` (the default structure) or `none`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum GuideChoice {
+    Auto,
+    Structure(GuideStructure),
+    Off,
+}
+
+impl GuideChoice {
+    /// The structure to build, if any: `auto` is the hemisphere grid.
+    fn structure(self) -> Option<GuideStructure> {
+        match self {
+            GuideChoice::Auto => Some(GuideStructure::Hemisphere),
+            GuideChoice::Structure(structure) => Some(structure),
+            GuideChoice::Off => None,
+        }
+    }
+}
+
+fn parse_guide_choice(s: &str) -> Result<GuideChoice, String> {
+    match s {
+        "auto" => Ok(GuideChoice::Auto),
+        "none" => Ok(GuideChoice::Off),
+        _ => GuideStructure::from_name(s).map(GuideChoice::Structure),
+    }
+}
+
+/// One method of `compare`: METHOD[:LIGHT_SELECTION][+ENVIRONMENT_SAMPLING][@GUIDE].
 #[derive(Clone, Copy, Debug)]
 struct ComparedMethod {
     method: Method,
     selection: Option<LightSelection>,
     environment: Option<EnvironmentSampling>,
+    guide: Option<GuideStructure>,
 }
 
 impl ComparedMethod {
@@ -242,11 +278,16 @@ impl ComparedMethod {
     fn name(&self) -> String {
         let selection = self.selection.map(|s| format!(":{}", s.name())).unwrap_or_default();
         let environment = self.environment.map(|e| format!("+{}", e.name())).unwrap_or_default();
-        format!("{}{selection}{environment}", self.method.name())
+        let guide = self.guide.map(|g| format!("@{}", g.name())).unwrap_or_default();
+        format!("{}{selection}{environment}{guide}", self.method.name())
     }
 }
 
 fn parse_compared_method(s: &str) -> Result<ComparedMethod, String> {
+    let (s, guide) = match s.split_once('@') {
+        Some((rest, guide)) => (rest, Some(GuideStructure::from_name(guide)?)),
+        None => (s, None),
+    };
     let (rest, environment) = match s.split_once('+') {
         Some((rest, environment)) => (rest, Some(EnvironmentSampling::from_name(environment)?)),
         None => (s, None),
@@ -255,7 +296,7 @@ fn parse_compared_method(s: &str) -> Result<ComparedMethod, String> {
         Some((method, selection)) => (parse_method(method)?, Some(LightSelection::from_name(selection)?)),
         None => (parse_method(rest)?, None),
     };
-    Ok(ComparedMethod { method, selection, environment })
+    Ok(ComparedMethod { method, selection, environment, guide })
 }
 
 fn parse_light_rule(s: &str) -> Result<LightUpdateRule, String> {
@@ -306,7 +347,37 @@ fn parse_mapping(s: &str) -> Result<HemisphereMapping, String> {
 }
 
 impl TraceOptions {
-    fn guide_settings(&self) -> Result<HemisphereGridSettings, String> {
+    /// The settings of `structure` from the options (budget, update rule and the
+    /// structure's own).
+    fn guide_settings(&self, structure: GuideStructure) -> Result<DirectionalGuideSettings, String> {
+        let hemisphere = self.hemisphere_settings()?;
+        Ok(match structure {
+            GuideStructure::Hemisphere => hemisphere.into(),
+            GuideStructure::Mixture => {
+                let defaults = GaussianMixtureSettings::default();
+                let settings = GaussianMixtureSettings {
+                    budget_bytes: hemisphere.budget_bytes,
+                    lobes: self.mixture_lobes,
+                    update_rule: hemisphere.update_rule,
+                    initial_q: self.initial_q.unwrap_or(defaults.initial_q),
+                    uniform_mix: self.uniform_mix.unwrap_or(defaults.uniform_mix),
+                    ..defaults
+                };
+                settings.validate().map_err(|e| format!("mixture guide: {e}"))?;
+                settings.into()
+            }
+        })
+    }
+
+    /// The one `--guide` of `render` and `reference`.
+    fn single_guide(&self) -> Result<GuideChoice, String> {
+        match self.guide.as_slice() {
+            [choice] => Ok(*choice),
+            _ => Err("--guide takes one structure here (several only with compare)".into()),
+        }
+    }
+
+    fn hemisphere_settings(&self) -> Result<HemisphereGridSettings, String> {
         if !(self.guide_mib.is_finite() && self.guide_mib > 0.0) {
             return Err(format!("--guide-mib {} must be positive", self.guide_mib));
         }
@@ -340,10 +411,17 @@ impl TraceOptions {
         }
     }
 
-    /// The directional guide's settings if `method` guides and `--guide` is not `none`
+    /// The directional guide's settings if `method` guides and `choice` is not `none`
     /// (the plan may still leave it out).
-    fn directional_guide(&self, method: Method, settings: HemisphereGridSettings) -> Option<HemisphereGridSettings> {
-        (method.uses_guide() && self.guide != "none").then_some(settings)
+    fn directional_guide(
+        &self,
+        method: Method,
+        choice: GuideChoice,
+    ) -> Result<Option<DirectionalGuideSettings>, String> {
+        match choice.structure() {
+            Some(structure) if method.uses_guide() => self.guide_settings(structure).map(Some),
+            _ => Ok(None),
+        }
     }
 
     /// What to build for light selection under `method`.
@@ -391,8 +469,8 @@ pub struct Prepared {
     pub scene: Scene,
     /// Its intersector.
     pub intersector: SceneIntersector,
-    /// The guide, for guided methods.
-    pub guide: Option<HemisphereGrid>,
+    /// The directional guide, for guided methods.
+    pub guide: Option<DirectionalGuide>,
     /// The learned light selection, when the plan asks for it and the scene has area lights.
     pub light_guide: Option<LightGuide>,
     /// The learned environment sampling, when the plan asks for it and the scene has an
@@ -404,11 +482,40 @@ pub struct Prepared {
     pub times: SetupTimes,
 }
 
-/// Loads a scene, builds the BVH and (when `guide` is given) the hemisphere grid.
+impl Prepared {
+    /// Renders with the learners built (the directional guide only for guided
+    /// methods), calling `on_pass` after every pass; the guide's structure picks the
+    /// tracer's instance.
+    pub fn render(
+        &mut self,
+        settings: &RenderSettings,
+        mut on_pass: impl FnMut(&Progress<'_>),
+    ) -> (Image, RenderStatistics) {
+        let lights = self.light_guide.as_mut();
+        let environment = self.environment_guide.as_mut();
+        let (scene, intersector) = (&self.scene, &self.intersector);
+        match self.guide.as_mut().filter(|_| settings.integrator.method.uses_guide()) {
+            Some(DirectionalGuide::Hemisphere(guide)) => {
+                let learners = Learners { directions: Some(guide.as_mut()), lights, environment };
+                render(scene, intersector, learners, settings, &mut on_pass)
+            }
+            Some(DirectionalGuide::Mixture(guide)) => {
+                let learners = Learners { directions: Some(guide), lights, environment };
+                render(scene, intersector, learners, settings, &mut on_pass)
+            }
+            None => {
+                let learners: Learners<'_, HemisphereGrid> = Learners { directions: None, lights, environment };
+                render(scene, intersector, learners, settings, &mut on_pass)
+            }
+        }
+    }
+}
+
+/// Loads a scene, builds the BVH and (when `guide` is given) the directional guide.
 pub fn prepare(
     path: &Path,
     intersector: IntersectorChoice,
-    guide: Option<HemisphereGridSettings>,
+    guide: Option<DirectionalGuideSettings>,
 ) -> Result<Prepared, String> {
     let plain = LightRequest::new(Some(LightSelection::Power), Some(EnvironmentSampling::Luminance), true);
     prepare_with_lights(path, intersector, guide, plain)
@@ -453,7 +560,7 @@ impl LightRequest {
 pub fn prepare_with_lights(
     path: &Path,
     intersector: IntersectorChoice,
-    guide: Option<HemisphereGridSettings>,
+    guide: Option<DirectionalGuideSettings>,
     lights: LightRequest,
 ) -> Result<Prepared, String> {
     let start = Instant::now();
@@ -467,15 +574,9 @@ pub fn prepare_with_lights(
         GuidePlan::new(&scene, guide.is_some(), lights.next_event_estimation, lights.selection, lights.environment);
     let guide = match guide {
         Some(settings) if plan.directions => {
-            let grid = HemisphereGrid::build(&scene.triangles, settings).map_err(|e| format!("guide: {e}"))?;
-            let stats = grid.stats();
-            plan.note(format!(
-                "hemisphere grid: {} probes × {} patches, {} KiB",
-                stats.regions,
-                stats.entries_per_region,
-                stats.memory_bytes >> 10
-            ));
-            Some(grid)
+            let guide = DirectionalGuide::build(&scene, settings)?;
+            plan.note(guide.describe());
+            Some(guide)
         }
         _ => None,
     };
@@ -575,12 +676,7 @@ pub fn render_prepared(
     let bar = if show_progress { progress_bar(settings.budget) } else { ProgressBar::hidden() };
     let mut checkpoints = Vec::new();
     let mut previous_seconds = 0.0;
-    let learners = Learners {
-        directions: if settings.integrator.method.uses_guide() { prepared.guide.as_mut() } else { None },
-        lights: prepared.light_guide.as_mut(),
-        environment: prepared.environment_guide.as_mut(),
-    };
-    let (image, statistics) = render(&prepared.scene, &prepared.intersector, learners, settings, |progress| {
+    let (image, statistics) = prepared.render(settings, |progress| {
         match settings.budget {
             Budget::SamplesPerPixel(_) => bar.set_position(progress.passes as u64),
             Budget::Seconds(_) => {
@@ -649,12 +745,12 @@ pub fn statistics_json(
     let guide = prepared.guide.as_ref().filter(|_| method.uses_guide()).map(|g| {
         let s = g.stats();
         serde_json::json!({
-            "structure": "hemisphere",
-            "probes": s.regions,
-            "patches_per_probe": s.entries_per_region,
+            "structure": g.structure().name(),
+            "regions": s.regions,
+            "entries_per_region": s.entries_per_region,
             "memory_bytes": s.memory_bytes,
             "accepted_updates": s.accepted_updates,
-            "visited_patches": s.visited_entries,
+            "visited_entries": s.visited_entries,
             "rejected_non_finite": s.rejected_non_finite,
             "rejected_negative": s.rejected_negative,
             "epochs": s.epochs,
@@ -715,7 +811,7 @@ pub fn statistics_json(
 
 fn run_render(args: &RenderArgs) -> Result<(), String> {
     let options = &args.options;
-    let guide_settings = options.guide_settings()?;
+    let guide = options.directional_guide(args.integrator, options.single_guide()?)?;
     let budget = match (args.spp, args.seconds) {
         (Some(0), _) => return Err("--spp must be at least 1".into()),
         (Some(spp), _) => Budget::SamplesPerPixel(spp),
@@ -728,12 +824,8 @@ fn run_render(args: &RenderArgs) -> Result<(), String> {
         None => None,
     };
     let pool = thread_pool(options.threads)?;
-    let mut prepared = prepare_with_lights(
-        &args.scene,
-        options.intersector,
-        options.directional_guide(args.integrator, guide_settings),
-        options.light_request(args.integrator)?,
-    )?;
+    let mut prepared =
+        prepare_with_lights(&args.scene, options.intersector, guide, options.light_request(args.integrator)?)?;
     for warning in &prepared.scene.warnings {
         eprintln!("warning: {}: {warning}", args.scene.display());
     }
@@ -786,7 +878,7 @@ fn run_reference(args: &ReferenceArgs) -> Result<(), String> {
         return Err("--spp must be at least 1".into());
     }
     let pool = thread_pool(args.threads)?;
-    let guide = args.integrator.uses_guide().then(HemisphereGridSettings::default);
+    let guide = args.integrator.uses_guide().then(|| HemisphereGridSettings::default().into());
     let lights = LightRequest::new(Some(args.light_selection), Some(args.env_sampling), args.integrator.uses_nee());
     let mut prepared = prepare_with_lights(&args.scene, IntersectorChoice::default(), guide, lights)?;
     let integrator = IntegratorSettings {
@@ -816,7 +908,6 @@ fn run_compare(args: &CompareArgs) -> Result<(), String> {
         return Err(format!("--seconds {} must be positive", args.seconds));
     }
     let options = &args.options;
-    let guide_settings = options.guide_settings()?;
     let reference = read_image(&args.reference).map_err(|e| format!("{}: {e}", args.reference.display()))?;
     std::fs::create_dir_all(&args.out).map_err(|e| format!("cannot create {}: {e}", args.out.display()))?;
     let mut report_times: Vec<f64> = if args.report_at.is_empty() {
@@ -828,16 +919,16 @@ fn run_compare(args: &CompareArgs) -> Result<(), String> {
     let pool = thread_pool(options.threads)?;
     let mut rows = Vec::new();
     let mut names = Vec::new();
-    for compared in &args.methods {
+    for run in expand_guides(&args.methods, &options.guide) {
+        let (compared, name) = (run.compared, run.name);
         let method = compared.method;
         let mut options = options.clone();
         options.light_selection = Auto(compared.selection.or(options.light_selection.0));
         options.env_sampling = Auto(compared.environment.or(options.env_sampling.0));
-        let name = compared.name();
         let mut prepared = prepare_with_lights(
             &args.scene,
             options.intersector,
-            options.directional_guide(method, guide_settings),
+            options.directional_guide(method, run.guide)?,
             options.light_request(method)?,
         )?;
         eprintln!("{name}: plan: {}", prepared.plan.describe());
@@ -875,6 +966,40 @@ fn run_compare(args: &CompareArgs) -> Result<(), String> {
     crate::report::plot_svg(&args.out.join("error.svg"), &rows, &names, &title)?;
     println!("{table}");
     Ok(())
+}
+
+/// One render of `compare`: a method, the guide it runs with, and its name.
+struct CompareRun {
+    compared: ComparedMethod,
+    guide: GuideChoice,
+    name: String,
+}
+
+/// Each guided method once per entry of `--guide` (named METHOD@STRUCTURE when the list
+/// has more than one), unless it named its own structure; unguided methods run once.
+fn expand_guides(methods: &[ComparedMethod], choices: &[GuideChoice]) -> Vec<CompareRun> {
+    let mut runs = Vec::new();
+    for &compared in methods {
+        match compared.guide {
+            _ if !compared.method.uses_guide() => {
+                runs.push(CompareRun { compared, guide: GuideChoice::Off, name: compared.name() })
+            }
+            Some(structure) => {
+                runs.push(CompareRun { compared, guide: GuideChoice::Structure(structure), name: compared.name() })
+            }
+            None => {
+                for &guide in choices {
+                    let name = match (choices.len(), guide.structure()) {
+                        (1, _) => compared.name(),
+                        (_, Some(structure)) => format!("{}@{}", compared.name(), structure.name()),
+                        (_, None) => format!("{}@none", compared.name()),
+                    };
+                    runs.push(CompareRun { compared, guide, name });
+                }
+            }
+        }
+    }
+    runs
 }
 
 impl Cli {

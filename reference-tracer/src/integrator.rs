@@ -6,10 +6,8 @@
 
 use glam::{Vec2, Vec3};
 use guiding_core::environment::{EnvCell, EnvSample};
-use guiding_core::hemisphere::ProbeDistribution;
 use guiding_core::{
-    DirectionalDistribution, EnvTileGuide, Guide, HemisphereGrid, Intersector, Lambertian, LightGuide, Pcg32, ProbeId,
-    Ray, ScatteringFunction,
+    DirectionalDistribution, EnvTileGuide, Guide, Intersector, Lambertian, LightGuide, Pcg32, Ray, ScatteringFunction,
 };
 
 use crate::color::luminance;
@@ -231,18 +229,26 @@ enum Onward {
 /// vertex, whose Q was learned the same way. Without next-event estimation the weights
 /// are 1 and this is exactly Eq. (1).
 #[derive(Clone, Copy, Debug)]
-pub struct LearningVertex {
-    region: Option<ProbeId>,
+pub struct LearningVertex<R> {
+    region: Option<R>,
     direction: Vec3,
+    /// Density the direction was drawn with, per steradian (the one-sample mixture's).
+    pdf: f32,
     arriving: f32,
     onward: Onward,
 }
 
-/// Per-thread scratch space reused across paths (no allocation per path).
-#[derive(Default)]
-pub struct PathScratch {
-    vertices: Vec<LearningVertex>,
+/// Per-thread scratch space reused across paths (no allocation per path); `R` is the
+/// guide's region type.
+pub struct PathScratch<R> {
+    vertices: Vec<LearningVertex<R>>,
     clock: GuideClock,
+}
+
+impl<R> Default for PathScratch<R> {
+    fn default() -> Self {
+        Self { vertices: Vec::new(), clock: GuideClock::default() }
+    }
 }
 
 /// Accumulates the time of guide calls on the paths chosen for timing.
@@ -276,11 +282,11 @@ impl ScatteringFunction for ScalarBsdf<'_> {
     }
 }
 
-/// Traces paths through a scene.
-pub struct PathTracer<'a, I: Intersector> {
+/// Traces paths through a scene, guided (for the guided methods) by any [`Guide`].
+pub struct PathTracer<'a, I: Intersector, G: Guide> {
     scene: &'a Scene,
     intersector: &'a I,
-    guide: Option<&'a HemisphereGrid>,
+    guide: Option<&'a G>,
     /// The learned light selection, when `settings.light_selection` is `Learned`.
     light_guide: Option<&'a LightGuide>,
     /// The learned environment sampling, when `settings.environment_sampling` is `Tiles`.
@@ -290,14 +296,14 @@ pub struct PathTracer<'a, I: Intersector> {
     environment_choice: f32,
 }
 
-impl<'a, I: Intersector> PathTracer<'a, I> {
+impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
     /// A tracer; `guide` is used by the guided methods only, `light_guide` when lights
     /// are selected as learned, `environment_guide` when the environment is sampled by
     /// tiles.
     pub fn new(
         scene: &'a Scene,
         intersector: &'a I,
-        guide: Option<&'a HemisphereGrid>,
+        guide: Option<&'a G>,
         light_guide: Option<&'a LightGuide>,
         environment_guide: Option<&'a EnvTileGuide>,
         settings: IntegratorSettings,
@@ -380,7 +386,7 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
         &self,
         mut ray: Ray,
         rng: &mut Pcg32,
-        scratch: &mut PathScratch,
+        scratch: &mut PathScratch<G::Region>,
         counters: &mut PathCounters,
     ) -> Vec3 {
         let settings = &self.settings;
@@ -525,7 +531,13 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
                         last.onward = Onward::Carry(luminance(factor));
                     }
                 }
-                scratch.vertices.push(LearningVertex { region, direction: wi, arriving: 0.0, onward: Onward::End });
+                scratch.vertices.push(LearningVertex {
+                    region,
+                    direction: wi,
+                    pdf,
+                    arriving: 0.0,
+                    onward: Onward::End,
+                });
             }
             ray = Ray::new(self.spawn(point, geometric_normal, wi), wi);
             previous = Some((point, pdf, sampled_delta));
@@ -552,7 +564,7 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
         shading: &ShadingFrame,
         wo: Vec3,
         wi: Vec3,
-        distribution: Option<&ProbeDistribution<'_>>,
+        distribution: Option<&G::Distribution<'_>>,
         clock: &mut GuideClock,
     ) -> f32 {
         let bsdf_pdf = material.pdf(shading, wo, wi);
@@ -574,7 +586,7 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
         point: Vec3,
         geometric_normal: Vec3,
         wo: Vec3,
-        distribution: Option<&ProbeDistribution<'_>>,
+        distribution: Option<&G::Distribution<'_>>,
         rng: &mut Pcg32,
         clock: &mut GuideClock,
         counters: &mut PathCounters,
@@ -672,7 +684,7 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
 
     /// Applies Eq. (1) along a finished path, last vertex first. Rejected targets are
     /// counted by the guide itself (its `stats()`).
-    fn learn_from_path(&self, vertices: &[LearningVertex]) {
+    fn learn_from_path(&self, vertices: &[LearningVertex<G::Region>]) {
         let Some(guide) = self.guide else { return };
         let mut next_target = 0.0f32;
         for vertex in vertices.iter().rev() {
@@ -683,7 +695,7 @@ impl<'a, I: Intersector> PathTracer<'a, I> {
             };
             let target = vertex.arriving + onward;
             if let Some(region) = vertex.region {
-                guide.update(region, vertex.direction, target);
+                guide.update_sampled(region, vertex.direction, target, vertex.pdf);
             }
             next_target = target;
         }

@@ -1,15 +1,18 @@
 //! # reference-tracer
 //!
 //! Lodestar's reference CPU path tracer: it reads a scene (SCENE_FORMAT.md), builds an
-//! obvhs intersector, traces paths unguided (`pt`, `nee`) or guided by guiding-core's
-//! [`HemisphereGrid`](guiding_core::HemisphereGrid) (`guided`, `guided-nee`), learns
-//! while it renders, and reports images, statistics and error against run time.
+//! obvhs intersector, traces paths unguided (`pt`, `nee`) or guided (`guided`,
+//! `guided-nee`) by any of guiding-core's Q structures — the
+//! [`HemisphereGrid`](guiding_core::HemisphereGrid) or the
+//! [`GaussianMixture`](guiding_core::GaussianMixture) — learns while it renders, and
+//! reports images, statistics and error against run time.
 //!
 //! The data path runs one way: scene → intersector → integrator → guide → image.
 
 pub mod camera;
 pub mod cli;
 pub mod color;
+pub mod directional_guide;
 pub mod environment;
 pub mod integrator;
 pub mod lights;

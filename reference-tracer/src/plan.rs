@@ -68,7 +68,7 @@ impl SceneFacts {
 /// The learners a render uses and why.
 #[derive(Clone, Debug, PartialEq)]
 pub struct GuidePlan {
-    /// A directional guide (hemisphere grid) for the guided methods.
+    /// A directional guide for the guided methods.
     pub directions: bool,
     /// How next-event estimation picks area lights (a light guide is built for `Learned`).
     pub light_selection: LightSelection,
@@ -98,7 +98,7 @@ impl GuidePlan {
         let guidable = facts.diffuse_triangles + facts.glossy_triangles > 0;
         let mut reasons = vec![facts.describe()];
         reasons.push(match (directions, guidable) {
-            (true, true) => "directions: hemisphere grid (guided method)".to_string(),
+            (true, true) => "directions: guided (guided method)".to_string(),
             (true, false) => "directions: none (every surface is a mirror or glass: nothing to guide)".to_string(),
             (false, _) => "directions: none (unguided method, or --guide none)".to_string(),
         });

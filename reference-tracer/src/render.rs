@@ -82,23 +82,28 @@ impl Progress<'_> {
 }
 
 /// The learned structures a render uses; each is learned during every pass when the
-/// settings ask for it.
-#[derive(Default)]
-pub struct Learners<'a> {
+/// settings ask for it. `G` is the directional guide's structure.
+pub struct Learners<'a, G: Guide = HemisphereGrid> {
     /// The directional guide (guided methods).
-    pub directions: Option<&'a mut HemisphereGrid>,
+    pub directions: Option<&'a mut G>,
     /// Learned light selection (`LightSelection::Learned`).
     pub lights: Option<&'a mut LightGuide>,
     /// Learned environment sampling (`EnvironmentSampling::Tiles`).
     pub environment: Option<&'a mut EnvTileGuide>,
 }
 
+impl<G: Guide> Default for Learners<'_, G> {
+    fn default() -> Self {
+        Self { directions: None, lights: None, environment: None }
+    }
+}
+
 /// Renders `scene` progressively on the current rayon pool with `learners` (learned
 /// during every pass); `on_pass` sees the state after every pass.
-pub fn render<I: Intersector>(
+pub fn render<I: Intersector, G: Guide>(
     scene: &Scene,
     intersector: &I,
-    learners: Learners<'_>,
+    learners: Learners<'_, G>,
     settings: &RenderSettings,
     mut on_pass: impl FnMut(&Progress<'_>),
 ) -> (Image, RenderStatistics) {

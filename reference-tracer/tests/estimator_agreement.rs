@@ -1,11 +1,13 @@
 //! The estimators agree: a white furnace converges to Le/(1-ρ) under every integrator and
-//! light selection; on the Cornell box pt, nee and guided (every update rule) give
+//! light selection; on the Cornell box pt, nee and guided (every update rule, hemisphere
+//! grid and mixture) give
 //! per-image means within 4 standard errors of each other, and on many_lights uniform,
 //! power and learned light selection do; the errors are taken from per-pass image means.
 
 mod support;
 
-use guiding_core::{HemisphereGridSettings, IntegralEstimator, LearningRate, UpdateRule};
+use guiding_core::{GaussianMixtureSettings, HemisphereGridSettings, IntegralEstimator, LearningRate, UpdateRule};
+use reference_tracer::directional_guide::DirectionalGuideSettings;
 use reference_tracer::integrator::{EnvironmentSampling, LightSelection, Method};
 use serde_json::json;
 use support::{mean_estimate, render_scene, settings};
@@ -59,7 +61,7 @@ fn white_furnace_converges_to_le_over_one_minus_albedo() {
         let statistics = render_scene(
             &scene,
             integrator,
-            Some(HemisphereGridSettings { probe_count: Some(60), ..Default::default() }),
+            Some(HemisphereGridSettings { probe_count: Some(60), ..Default::default() }.into()),
             48,
             3,
         );
@@ -76,8 +78,9 @@ fn white_furnace_converges_to_le_over_one_minus_albedo() {
     }
 }
 
-/// pt, then guided under every learning rate × integral estimator, then guided-nee.
-fn methods_and_rules() -> Vec<(String, Method, Option<UpdateRule>)> {
+/// pt, then guided by a hemisphere grid of `probes` probes under every learning rate ×
+/// integral estimator, then guided-nee; then guided and guided-nee by a mixture.
+fn methods_and_guides(probes: usize) -> Vec<(String, Method, Option<DirectionalGuideSettings>)> {
     let mut cases: Vec<(String, Method, Option<UpdateRule>)> = vec![("pt".into(), Method::Pt, None)];
     let rates = [
         LearningRate::SimpleAverage,
@@ -94,18 +97,29 @@ fn methods_and_rules() -> Vec<(String, Method, Option<UpdateRule>)> {
         }
     }
     cases.push(("guided-nee".into(), Method::GuidedNee, Some(UpdateRule::default())));
+    let hemisphere =
+        |update_rule| HemisphereGridSettings { update_rule, probe_count: Some(probes), ..Default::default() };
+    let mut cases: Vec<_> =
+        cases.into_iter().map(|(name, method, rule)| (name, method, rule.map(|r| hemisphere(r).into()))).collect();
+    let mixture = |learning_rate| GaussianMixtureSettings {
+        budget_bytes: 256 << 10,
+        update_rule: UpdateRule { learning_rate, ..Default::default() },
+        ..Default::default()
+    };
+    for (name, method, rate) in [
+        ("guided mixture simple", Method::Guided, LearningRate::SimpleAverage),
+        ("guided mixture exponential", Method::Guided, LearningRate::Exponential { alpha: 0.1 }),
+        ("guided-nee mixture", Method::GuidedNee, LearningRate::SimpleAverage),
+    ] {
+        cases.push((name.into(), method, Some(mixture(rate).into())));
+    }
     cases
 }
 
 /// Every method and rule agrees with a long `nee` render of the same scene.
 fn assert_means_agree(scene: &std::path::Path, probes: usize, spp: u32, reference_spp: u32) {
     let reference = mean_estimate(&render_scene(scene, settings(Method::Nee), None, reference_spp, 11));
-    for (i, (name, method, rule)) in methods_and_rules().into_iter().enumerate() {
-        let guide = rule.map(|update_rule| HemisphereGridSettings {
-            update_rule,
-            probe_count: Some(probes),
-            ..Default::default()
-        });
+    for (i, (name, method, guide)) in methods_and_guides(probes).into_iter().enumerate() {
         let spp = if method == Method::Pt { 4 * spp } else { spp };
         let estimate = mean_estimate(&render_scene(scene, settings(method), guide, spp, 100 + i as u64));
         support::assert_agree(&format!("{name} vs nee"), &estimate, &reference);
@@ -146,7 +160,7 @@ fn window_means_agree_across_environment_sampling() {
     let reference =
         mean_estimate(&render_scene(&scene, with(Method::Nee, EnvironmentSampling::Luminance), None, 512, 51));
     let guide = HemisphereGridSettings { probe_count: Some(400), ..Default::default() };
-    for (i, (method, guide)) in [(Method::Nee, None), (Method::GuidedNee, Some(guide))].into_iter().enumerate() {
+    for (i, (method, guide)) in [(Method::Nee, None), (Method::GuidedNee, Some(guide.into()))].into_iter().enumerate() {
         let estimate =
             mean_estimate(&render_scene(&scene, with(method, EnvironmentSampling::Tiles), guide, 256, 60 + i as u64));
         support::assert_agree(&format!("{} with tiles vs nee with luminance", method.name()), &estimate, &reference);

@@ -15,7 +15,7 @@ fn plan(scene: &str, method: Method, selection: Option<LightSelection>) -> refer
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes").join(scene).join("scene.json");
     let guide = method.uses_guide().then(|| HemisphereGridSettings { budget_bytes: 64 << 10, ..Default::default() });
     let lights = LightRequest::new(selection, None, method.uses_nee());
-    prepare_with_lights(&path, IntersectorChoice::default(), guide, lights).unwrap()
+    prepare_with_lights(&path, IntersectorChoice::default(), guide.map(Into::into), lights).unwrap()
 }
 
 #[test]
@@ -102,8 +102,13 @@ fn a_scene_of_mirrors_and_glass_gets_no_directional_guide() {
     });
     let path = support::write_scene(&folder, &scene);
     let guide = Some(HemisphereGridSettings { budget_bytes: 64 << 10, ..Default::default() });
-    let prepared =
-        prepare_with_lights(&path, IntersectorChoice::default(), guide, LightRequest::new(None, None, true)).unwrap();
+    let prepared = prepare_with_lights(
+        &path,
+        IntersectorChoice::default(),
+        guide.map(Into::into),
+        LightRequest::new(None, None, true),
+    )
+    .unwrap();
     assert!(!prepared.plan.directions && prepared.guide.is_none(), "{}", prepared.plan.describe());
     assert!(
         prepared.plan.describe().contains("0 diffuse, 0 glossy, 4 delta triangles"),
@@ -121,9 +126,6 @@ fn a_scene_of_mirrors_and_glass_gets_no_directional_guide() {
         train_seconds: 0.0,
     };
     let mut prepared = prepared;
-    let learners =
-        reference_tracer::render::Learners { environment: prepared.environment_guide.as_mut(), ..Default::default() };
-    let (image, _) =
-        reference_tracer::render::render(&prepared.scene, &prepared.intersector, learners, &settings, |_| {});
+    let (image, _) = prepared.render(&settings, |_| {});
     assert!(image.pixels.iter().all(|p| p.is_finite()) && image.mean().max_element() > 0.0);
 }

@@ -10,14 +10,15 @@ use std::path::{Path, PathBuf};
 
 use glam::Vec3;
 use guiding_core::HemisphereGridSettings;
+use reference_tracer::directional_guide::DirectionalGuideSettings;
 use reference_tracer::integrator::{EnvironmentSampling, IntegratorSettings, Method};
 use reference_tracer::output::{write_pfm, Image};
 use reference_tracer::scene::Scene;
 use serde_json::{json, Value};
 use support::{assert_agree, mean_estimate, render_image, render_scene, settings, MeanEstimate};
 
-fn guide_settings() -> Option<HemisphereGridSettings> {
-    Some(HemisphereGridSettings { budget_bytes: 256 << 10, ..Default::default() })
+fn guide_settings() -> Option<DirectionalGuideSettings> {
+    Some(HemisphereGridSettings { budget_bytes: 256 << 10, ..Default::default() }.into())
 }
 
 fn estimate(scene: &Path, method: Method, spp: u32, seed: u64) -> MeanEstimate {

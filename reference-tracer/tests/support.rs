@@ -4,9 +4,10 @@
 use std::path::{Path, PathBuf};
 
 use reference_tracer::cli::{prepare_with_lights, LightRequest};
+use reference_tracer::directional_guide::DirectionalGuideSettings;
 use reference_tracer::integrator::{IntegratorSettings, Method};
 use reference_tracer::output::Image;
-use reference_tracer::render::{render, Budget, Learners, RenderSettings, RenderStatistics};
+use reference_tracer::render::{Budget, RenderSettings, RenderStatistics};
 use reference_tracer::scene_intersector::IntersectorChoice;
 
 /// A fresh temporary folder for one test.
@@ -84,7 +85,7 @@ pub fn mean_estimate(statistics: &RenderStatistics) -> MeanEstimate {
 pub fn render_scene(
     scene: &Path,
     integrator: IntegratorSettings,
-    guide: Option<guiding_core::HemisphereGridSettings>,
+    guide: Option<DirectionalGuideSettings>,
     spp: u32,
     seed: u64,
 ) -> RenderStatistics {
@@ -95,7 +96,7 @@ pub fn render_scene(
 pub fn render_image(
     scene: &Path,
     integrator: IntegratorSettings,
-    guide: Option<guiding_core::HemisphereGridSettings>,
+    guide: Option<DirectionalGuideSettings>,
     spp: u32,
     seed: u64,
 ) -> (Image, RenderStatistics) {
@@ -107,12 +108,7 @@ pub fn render_image(
     );
     let mut prepared = prepare_with_lights(scene, IntersectorChoice::default(), guide, lights).unwrap();
     let settings = RenderSettings { integrator, budget: Budget::SamplesPerPixel(spp), seed, train_seconds: 0.0 };
-    let learners = Learners {
-        directions: prepared.guide.as_mut(),
-        lights: prepared.light_guide.as_mut(),
-        environment: prepared.environment_guide.as_mut(),
-    };
-    render(&prepared.scene, &prepared.intersector, learners, &settings, |_| {})
+    prepared.render(&settings, |_| {})
 }
 
 pub fn settings(method: Method) -> IntegratorSettings {

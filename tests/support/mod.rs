@@ -1,11 +1,12 @@
-//! Shared pieces of the workspace tests: small scenes and the table access the generic
+//! Shared pieces of the workspace tests: small scenes and the entry access the generic
 //! guide harness needs.
 #![allow(dead_code)]
 
 use glam::{Vec2, Vec3};
+use guiding_core::mixture::{VmfLobe, VmfMixture};
 use guiding_core::{
-    DirectionSample, DirectionalDistribution, Frame, Guide, HemisphereGrid, HemisphereGridSettings, HemisphereMapping,
-    PatchLayout, ProbeId, Triangle, UpdateRule,
+    DirectionSample, DirectionalDistribution, Frame, GaussianMixture, GaussianMixtureSettings, Guide, HemisphereGrid,
+    HemisphereGridSettings, HemisphereMapping, MixtureRegion, PatchLayout, ProbeId, Triangle, UpdateRule,
 };
 
 /// Which way a box's faces look.
@@ -40,8 +41,8 @@ pub fn box_walls() -> Vec<Triangle> {
 }
 
 /// What the generic harness needs from a guide beyond the [`Guide`] trait: regions to
-/// test and direct access to their tables.
-pub trait TableAccess: Guide {
+/// test and direct access to their entries (a table's patches, a mixture's lobes).
+pub trait GuideAccess: Guide {
     /// A few surface points (position, normal) spread over the scene.
     fn test_points(&self) -> Vec<(Vec3, Vec3)>;
     /// The regions of [`test_points`](Self::test_points), with their normals.
@@ -53,14 +54,35 @@ pub trait TableAccess: Guide {
     }
     /// Entries per region.
     fn entry_count(&self) -> usize;
-    /// Overwrites a region's Q table (one value per entry).
+    /// Overwrites a region's entries (one non-negative value per entry: Q of a patch,
+    /// the mass ∫Q dω a lobe carries).
     fn set_entries(&mut self, region: Self::Region, values: &[f32]);
+    /// Every entry of every region.
+    fn all_values(&self) -> Vec<f32>;
+    /// The floor no entry may go under.
+    fn floor(&self) -> f32;
+    /// Levels of adaptive refinement [`pdf_integral`](guiding_core::validation::pdf_integral)
+    /// needs: tables are piecewise constant and refine only along patch borders; a smooth
+    /// pdf refines everywhere, and 3 levels already resolve a 5° lobe.
+    fn integration_depth(&self) -> u32 {
+        6
+    }
+}
+
+/// Guides whose entries are Q values updated one target at a time (Eq. 1 per entry).
+pub trait TableAccess: GuideAccess {
     /// Q of the entry that holds `direction`.
     fn entry_value(&self, region: Self::Region, direction: Vec3) -> f32;
-    /// Every Q of every region.
-    fn all_values(&self) -> Vec<f32>;
-    /// The floor no Q may go under.
-    fn floor(&self) -> f32;
+}
+
+/// The three inward normals of [`GuideAccess::test_points`] over [`box_walls`]: the
+/// floor, a wall and the ceiling.
+pub fn box_test_points() -> Vec<(Vec3, Vec3)> {
+    vec![
+        (Vec3::new(0.1, -1.0, 0.2), Vec3::Y),
+        (Vec3::new(-1.0, 0.3, -0.4), Vec3::X),
+        (Vec3::new(0.5, 1.0, 0.5), -Vec3::Y),
+    ]
 }
 
 /// A 96-probe hemisphere grid over [`box_walls`] with the given mapping and rule.
@@ -74,14 +96,9 @@ pub fn hemisphere_grid(mapping: HemisphereMapping, rule: UpdateRule) -> Hemisphe
     HemisphereGrid::build(&box_walls(), settings).expect("grid over the box")
 }
 
-impl TableAccess for HemisphereGrid {
+impl GuideAccess for HemisphereGrid {
     fn test_points(&self) -> Vec<(Vec3, Vec3)> {
-        // The floor, a wall and the ceiling of the box, each with its inward normal.
-        vec![
-            (Vec3::new(0.1, -1.0, 0.2), Vec3::Y),
-            (Vec3::new(-1.0, 0.3, -0.4), Vec3::X),
-            (Vec3::new(0.5, 1.0, 0.5), -Vec3::Y),
-        ]
+        box_test_points()
     }
 
     fn entry_count(&self) -> usize {
@@ -92,18 +109,76 @@ impl TableAccess for HemisphereGrid {
         self.set_q_values(region, values);
     }
 
-    fn entry_value(&self, region: ProbeId, direction: Vec3) -> f32 {
-        let local = Frame::from_normal(self.probe_normals()[region.0 as usize]).to_local(direction);
-        let patch = self.settings().layout.patch_of(local).expect("direction in the probe's hemisphere");
-        self.q(region, patch)
-    }
-
     fn all_values(&self) -> Vec<f32> {
         self.q_values().iter().map(|q| f32::from_bits(q.load(std::sync::atomic::Ordering::Relaxed))).collect()
     }
 
     fn floor(&self) -> f32 {
         self.settings().q_floor
+    }
+}
+
+impl TableAccess for HemisphereGrid {
+    fn entry_value(&self, region: ProbeId, direction: Vec3) -> f32 {
+        let local = Frame::from_normal(self.probe_normals()[region.0 as usize]).to_local(direction);
+        let patch = self.settings().layout.patch_of(local).expect("direction in the probe's hemisphere");
+        self.q(region, patch)
+    }
+}
+
+/// A mixture guide over [`box_walls`]' box, 3×3×3 cells, with the given rule.
+pub fn gaussian_mixture(rule: UpdateRule) -> GaussianMixture {
+    let settings = GaussianMixtureSettings { resolution: Some([3, 3, 3]), update_rule: rule, ..Default::default() };
+    GaussianMixture::new(Vec3::NEG_ONE, Vec3::ONE, settings).expect("mixture over the box")
+}
+
+/// Lobe means of [`GuideAccess::set_entries`] on a mixture: spread over the sphere.
+const ENTRY_LOBE_MEANS: [Vec3; 8] = [
+    Vec3::new(0.0, 1.0, 0.0),
+    Vec3::new(0.8, 0.5, 0.3),
+    Vec3::new(-0.6, 0.2, 0.7),
+    Vec3::new(0.1, -0.9, -0.4),
+    Vec3::new(-0.5, 0.6, -0.6),
+    Vec3::new(0.7, -0.3, -0.6),
+    Vec3::new(-0.9, -0.4, 0.1),
+    Vec3::new(0.3, 0.2, -0.9),
+];
+
+/// Lobe concentrations of the same: from nearly uniform to about 5° wide.
+const ENTRY_LOBE_CONCENTRATIONS: [f32; 8] = [0.5, 4.0, 15.0, 60.0, 250.0, 2.0, 30.0, 120.0];
+
+impl GuideAccess for GaussianMixture {
+    fn test_points(&self) -> Vec<(Vec3, Vec3)> {
+        box_test_points()
+    }
+
+    fn entry_count(&self) -> usize {
+        self.settings().lobes
+    }
+
+    /// Lobe k at a fixed mean and concentration carrying mass `values[k]`.
+    fn set_entries(&mut self, region: MixtureRegion, values: &[f32]) {
+        let lobes: Vec<(VmfLobe, f32)> = values
+            .iter()
+            .enumerate()
+            .map(|(k, &v)| (VmfLobe::new(ENTRY_LOBE_MEANS[k], ENTRY_LOBE_CONCENTRATIONS[k]), v))
+            .collect();
+        let total = values.iter().map(|&v| v as f64).sum::<f64>().min(f32::MAX as f64) as f32;
+        self.set_mixture(region, VmfMixture::from_lobes(&lobes, total));
+    }
+
+    fn all_values(&self) -> Vec<f32> {
+        (0..self.region_count() as u32)
+            .flat_map(|r| self.mixture(MixtureRegion(r)).lobe_weight_statistics().to_vec())
+            .collect()
+    }
+
+    fn floor(&self) -> f32 {
+        0.0
+    }
+
+    fn integration_depth(&self) -> u32 {
+        3
     }
 }
 

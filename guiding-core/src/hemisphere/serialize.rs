@@ -21,15 +21,13 @@ use alloc::vec::Vec;
 use core::sync::atomic::Ordering;
 use glam::Vec3;
 
-use crate::bytes::{ByteReader, ByteWriter};
+use crate::bytes::{invalid_field, open_guide_bytes, ByteReader, ByteWriter};
 use crate::error::{DecodeError, Error};
-use crate::update_rule::{IntegralEstimator, LearningRate, UpdateRule};
 
 use super::grid::{GridState, HemisphereGrid};
 use super::mapping::{HemisphereMapping, PatchLayout};
 use super::settings::{HemisphereGridSettings, MAX_PROBES};
 
-const MAGIC: &[u8; 8] = b"LODESTAR";
 /// Format version written and read by this build.
 pub const FORMAT_VERSION: u32 = 1;
 /// Structure tag of a hemisphere grid.
@@ -41,9 +39,7 @@ pub(crate) fn encode(grid: &HemisphereGrid) -> Vec<u8> {
     let entries = state.q.len();
     let probes = state.positions.len();
     let mut w = ByteWriter::with_capacity(128 + probes * 28 + entries * 12);
-    w.put_bytes(MAGIC);
-    w.put_u32(FORMAT_VERSION);
-    w.put_u32(STRUCTURE_TAG);
+    w.put_header(FORMAT_VERSION, STRUCTURE_TAG);
     w.put_u32(match s.layout.mapping {
         HemisphereMapping::Cylindrical => 0,
         HemisphereMapping::ConcentricSquare => 1,
@@ -57,29 +53,13 @@ pub(crate) fn encode(grid: &HemisphereGrid) -> Vec<u8> {
     w.put_f32(s.q_floor);
     w.put_f32(s.uniform_mix);
     w.put_f32(s.sampling_exponent);
-    let (kind, parameter) = match s.update_rule.learning_rate {
-        LearningRate::Exponential { alpha } => (0, alpha),
-        LearningRate::SimpleAverage => (1, 0.0),
-        LearningRate::RegionVisits => (2, 0.0),
-        LearningRate::Global { exponent } => (3, exponent),
-    };
-    w.put_u32(kind);
-    w.put_f32(parameter);
-    w.put_u32(match s.update_rule.integral {
-        IntegralEstimator::BsdfWeightedSum => 0,
-        IntegralEstimator::StratifiedPatches => 1,
-        IntegralEstimator::MaxEntry => 2,
-    });
-    let budget = s.budget_bytes as u64;
-    w.put_u32(budget as u32);
-    w.put_u32((budget >> 32) as u32);
+    w.put_update_rule(&s.update_rule);
+    w.put_u64(s.budget_bytes as u64);
     w.put_u32(s.probe_count.unwrap_or(0) as u32);
     w.put_f32(state.probe_spacing);
     w.put_u32(state.epoch);
-    for count in [state.rejected_non_finite as u64, state.rejected_negative as u64] {
-        w.put_u32(count as u32);
-        w.put_u32((count >> 32) as u32);
-    }
+    w.put_u64(state.rejected_non_finite as u64);
+    w.put_u64(state.rejected_negative as u64);
     w.put_u32(probes as u32);
     for v in state.positions.iter().chain(state.normals) {
         v.to_array().iter().for_each(|&c| w.put_f32(c));
@@ -91,26 +71,17 @@ pub(crate) fn encode(grid: &HemisphereGrid) -> Vec<u8> {
     w.finish_with_checksum()
 }
 
-fn invalid(field: &'static str, index: usize, requirement: &'static str) -> Error {
-    Error::Decode(DecodeError::InvalidField { field, index, requirement })
-}
-
-fn read_u64(r: &mut ByteReader<'_>) -> Result<u64, DecodeError> {
-    let low = r.u32()? as u64;
-    Ok(low | (r.u32()? as u64) << 32)
-}
-
 fn read_settings(r: &mut ByteReader<'_>) -> Result<HemisphereGridSettings, Error> {
     let mapping = match r.u32()? {
         0 => HemisphereMapping::Cylindrical,
         1 => HemisphereMapping::ConcentricSquare,
-        _ => return Err(invalid("mapping", 0, "0 (cylindrical) or 1 (concentric square)")),
+        _ => return Err(invalid_field("mapping", 0, "0 (cylindrical) or 1 (concentric square)")),
     };
     let resolution = [r.u32()?, r.u32()?];
     let two_sided = match r.u32()? {
         0 => false,
         1 => true,
-        _ => return Err(invalid("two_sided", 0, "0 or 1")),
+        _ => return Err(invalid_field("two_sided", 0, "0 or 1")),
     };
     let max_normal_angle_deg = r.f32()?;
     let max_search_rings = r.u32()?;
@@ -118,22 +89,8 @@ fn read_settings(r: &mut ByteReader<'_>) -> Result<HemisphereGridSettings, Error
     let q_floor = r.f32()?;
     let uniform_mix = r.f32()?;
     let sampling_exponent = r.f32()?;
-    let kind = r.u32()?;
-    let parameter = r.f32()?;
-    let learning_rate = match kind {
-        0 => LearningRate::Exponential { alpha: parameter },
-        1 => LearningRate::SimpleAverage,
-        2 => LearningRate::RegionVisits,
-        3 => LearningRate::Global { exponent: parameter },
-        _ => return Err(invalid("learning_rate", 0, "a kind in 0..=3")),
-    };
-    let integral = match r.u32()? {
-        0 => IntegralEstimator::BsdfWeightedSum,
-        1 => IntegralEstimator::StratifiedPatches,
-        2 => IntegralEstimator::MaxEntry,
-        _ => return Err(invalid("integral", 0, "a kind in 0..=2")),
-    };
-    let budget_bytes = usize::try_from(read_u64(r)?).map_err(|_| invalid("budget_bytes", 0, "addressable"))?;
+    let update_rule = r.update_rule()?;
+    let budget_bytes = usize::try_from(r.u64()?).map_err(|_| invalid_field("budget_bytes", 0, "addressable"))?;
     let probe_count = match r.u32()? {
         0 => None,
         n => Some(n as usize),
@@ -149,18 +106,14 @@ fn read_settings(r: &mut ByteReader<'_>) -> Result<HemisphereGridSettings, Error
         q_floor,
         uniform_mix,
         sampling_exponent,
-        update_rule: UpdateRule { learning_rate, integral },
+        update_rule,
     };
     settings.validate()?;
     Ok(settings)
 }
 
 fn read_vec3s(r: &mut ByteReader<'_>, count: usize) -> Result<Vec<Vec3>, DecodeError> {
-    let mut out = Vec::with_capacity(count);
-    for _ in 0..count {
-        out.push(Vec3::new(r.f32()?, r.f32()?, r.f32()?));
-    }
-    Ok(out)
+    (0..count).map(|_| r.vec3()).collect()
 }
 
 fn read_f32s(r: &mut ByteReader<'_>, count: usize) -> Result<Vec<f32>, DecodeError> {
@@ -172,38 +125,26 @@ fn read_u32s(r: &mut ByteReader<'_>, count: usize) -> Result<Vec<u32>, DecodeErr
 }
 
 pub(crate) fn decode(bytes: &[u8]) -> Result<HemisphereGrid, Error> {
-    if bytes.len() < MAGIC.len() || &bytes[..MAGIC.len()] != MAGIC {
-        return Err(DecodeError::BadMagic.into());
-    }
-    let mut r = ByteReader::verified(bytes)?;
-    r.take(MAGIC.len())?;
-    let version = r.u32()?;
-    if version != FORMAT_VERSION {
-        return Err(DecodeError::UnsupportedVersion { found: version, supported: FORMAT_VERSION }.into());
-    }
-    let structure = r.u32()?;
-    if structure != STRUCTURE_TAG {
-        return Err(DecodeError::WrongStructure { found: structure, expected: STRUCTURE_TAG }.into());
-    }
+    let mut r = open_guide_bytes(bytes, FORMAT_VERSION, STRUCTURE_TAG)?;
     let settings = read_settings(&mut r)?;
     let probe_spacing = r.f32()?;
     if !(probe_spacing.is_finite() && probe_spacing >= 0.0) {
-        return Err(invalid("probe_spacing", 0, "finite and non-negative"));
+        return Err(invalid_field("probe_spacing", 0, "finite and non-negative"));
     }
     let epoch = r.u32()?;
-    let rejected_non_finite = read_u64(&mut r)? as usize;
-    let rejected_negative = read_u64(&mut r)? as usize;
+    let rejected_non_finite = r.u64()? as usize;
+    let rejected_negative = r.u64()? as usize;
     let probes = r.u32()? as usize;
     if probes == 0 || probes > MAX_PROBES {
-        return Err(invalid("probe_count", 0, "in 1..=2^24"));
+        return Err(invalid_field("probe_count", 0, "in 1..=2^24"));
     }
     let patches = settings.layout.patch_count();
-    let entries = probes.checked_mul(patches).ok_or_else(|| invalid("probe_count", 0, "addressable"))?;
+    let entries = probes.checked_mul(patches).ok_or_else(|| invalid_field("probe_count", 0, "addressable"))?;
     // Check the length before allocating, so a damaged count cannot demand memory.
     let needed = entries
         .checked_mul(12)
         .and_then(|bytes| bytes.checked_add(probes * 28))
-        .ok_or_else(|| invalid("probe_count", 0, "addressable"))?;
+        .ok_or_else(|| invalid_field("probe_count", 0, "addressable"))?;
     if r.remaining() != needed {
         return Err(if r.remaining() < needed {
             DecodeError::Truncated { offset: r.offset(), needed, available: r.remaining() }
@@ -214,16 +155,16 @@ pub(crate) fn decode(bytes: &[u8]) -> Result<HemisphereGrid, Error> {
     }
     let positions = read_vec3s(&mut r, probes)?;
     if let Some(i) = positions.iter().position(|p| !p.is_finite()) {
-        return Err(invalid("positions", i, "finite"));
+        return Err(invalid_field("positions", i, "finite"));
     }
     let normals = read_vec3s(&mut r, probes)?;
     if let Some(i) = normals.iter().position(|n| !(n.is_finite() && (n.length() - 1.0).abs() <= 1e-5)) {
-        return Err(invalid("normals", i, "finite and unit length"));
+        return Err(invalid_field("normals", i, "finite and unit length"));
     }
     let probe_visits = read_u32s(&mut r, probes)?;
     let q = read_f32s(&mut r, entries)?;
     if let Some(i) = q.iter().position(|&q| !(q.is_finite() && q >= settings.q_floor)) {
-        return Err(invalid("q", i, "finite and at least q_floor"));
+        return Err(invalid_field("q", i, "finite and at least q_floor"));
     }
     let patch_visits = read_u32s(&mut r, entries)?;
     let cdf = read_f32s(&mut r, entries)?;

@@ -38,7 +38,12 @@ impl VmfLobe {
     /// A lobe about `mean` (normalised here; a zero or non-finite mean gives +z) with
     /// concentration `concentration` clamped to [0, [`MAX_CONCENTRATION`]] (NaN → 0).
     pub fn new(mean: Vec3, concentration: f32) -> Self {
-        let mean = mean.try_normalize().unwrap_or(Vec3::Z);
+        Self::with_unit_mean(mean.try_normalize().unwrap_or(Vec3::Z), concentration)
+    }
+
+    /// [`new`](Self::new) for a mean the caller knows is unit length, kept bit for bit
+    /// (a decoded lobe then encodes to the same bytes).
+    pub(crate) fn with_unit_mean(mean: Vec3, concentration: f32) -> Self {
         let kappa = if concentration.is_nan() { 0.0 } else { concentration.clamp(0.0, MAX_CONCENTRATION) };
         let kappa = if kappa < MIN_CONCENTRATION { 0.0 } else { kappa };
         // 1 − e^{−2κ} as −expm1(−2κ): exact to f32 precision even where it is ≈ 2κ.

@@ -111,25 +111,115 @@ impl VmfMixture {
         if !(valid_direction && weight.is_finite() && weight >= 0.0 && step > 0.0 && step <= 1.0) {
             return false;
         }
-        // Responsibilities r_k = w_k f_k(ω) / Σ_j w_j f_j(ω).
-        let mut responsibility: [f32; MAX_LOBES] =
-            core::array::from_fn(|k| if k < self.count { self.weights[k] * self.lobes[k].pdf(direction) } else { 0.0 });
-        let mut total: f32 = responsibility.iter().sum();
-        if !(total > 0.0 && total.is_finite()) {
-            // No lobe claims the direction (all underflowed): give it to the broadest.
-            responsibility = [0.0; MAX_LOBES];
-            responsibility[self.broadest()] = 1.0;
-            total = 1.0;
-        }
-        let keep = 1.0 - step;
-        let statistics = self.weight_statistics.iter_mut().zip(self.direction_statistics.iter_mut());
-        for ((s0, s1), r) in statistics.zip(responsibility).take(self.count) {
-            let r = r / total * weight;
-            *s0 = keep * *s0 + step * r;
-            *s1 = keep * *s1 + step * r * direction;
-        }
+        let responsibility = self.responsibilities(direction);
+        let s0: [f32; MAX_LOBES] = core::array::from_fn(|k| responsibility[k] * weight);
+        let s1: [Vec3; MAX_LOBES] = core::array::from_fn(|k| s0[k] * direction);
+        self.absorb(&s0, &s1, step);
         self.observations = self.observations.saturating_add(1);
         true
+    }
+
+    /// The E-step's responsibilities r_k = w_k f_k(ω) / Σ_j w_j f_j(ω) of unit
+    /// `direction`; they sum to 1 over the lobes (a direction no lobe claims, all having
+    /// underflowed, goes to the broadest) and are 0 past [`lobe_count`](Self::lobe_count).
+    pub fn responsibilities(&self, direction: Vec3) -> [f32; MAX_LOBES] {
+        let mut responsibility: [f32; MAX_LOBES] =
+            core::array::from_fn(|k| if k < self.count { self.weights[k] * self.lobes[k].pdf(direction) } else { 0.0 });
+        let total: f32 = responsibility.iter().sum();
+        if total > 0.0 && total.is_finite() {
+            responsibility.iter_mut().for_each(|r| *r /= total);
+        } else {
+            responsibility = [0.0; MAX_LOBES];
+            responsibility[self.broadest()] = 1.0;
+        }
+        responsibility
+    }
+
+    /// Moves the statistics towards a batch's averages by step `step` in (0, 1]:
+    /// `s0[k]` = mean of r_k·v and `s1[k]` = mean of r_k·v·ω over the batch (a batch of
+    /// one is [`observe`](Self::observe)). Evaluated in f64 and clamped to f32's range, so
+    /// extreme weights saturate instead of overflowing. Anything not finite is ignored.
+    pub fn absorb(&mut self, s0: &[f32; MAX_LOBES], s1: &[Vec3; MAX_LOBES], step: f32) {
+        let finite = s0[..self.count].iter().all(|v| v.is_finite() && *v >= 0.0)
+            && s1[..self.count].iter().all(|v| v.is_finite());
+        if !(finite && step > 0.0 && step <= 1.0) {
+            return;
+        }
+        let step = step as f64;
+        let mix = |old: f32, new: f32| {
+            let value = (1.0 - step) * old as f64 + step * new as f64;
+            value.clamp(-(f32::MAX as f64), f32::MAX as f64) as f32
+        };
+        for k in 0..self.count {
+            self.weight_statistics[k] = mix(self.weight_statistics[k], s0[k]);
+            let (old, new) = (self.direction_statistics[k], s1[k]);
+            self.direction_statistics[k] = Vec3::new(mix(old.x, new.x), mix(old.y, new.y), mix(old.z, new.z));
+        }
+    }
+
+    /// The running average of the sample weights (Σ_k S0_k): with weights target/density,
+    /// an estimate of ∫ target dω over the sphere (radiance × steradian).
+    pub fn total_weight(&self) -> f32 {
+        let total: f64 = self.weight_statistics[..self.count].iter().map(|&s| s as f64).sum();
+        total.min(f32::MAX as f64) as f32
+    }
+
+    /// Each lobe's share of [`total_weight`](Self::total_weight): S0_k.
+    pub fn lobe_weight_statistics(&self) -> &[f32] {
+        &self.weight_statistics[..self.count]
+    }
+
+    /// A mixture of the given lobes and weights (at most [`MAX_LOBES`]; weights are
+    /// normalised, a non-positive or non-finite sum gives equal weights) whose statistics
+    /// describe it as if fitted to samples of total weight `total_weight` (≥ 0): S0_k =
+    /// total·w_k and S1_k = S0_k·A(κ_k)·μ_k, A(κ) = coth κ − 1/κ the mean resultant
+    /// length of a vMF lobe, so a refit keeps it close.
+    pub fn from_lobes(lobes: &[(VmfLobe, f32)], total_weight: f32) -> Self {
+        let count = lobes.len().clamp(1, MAX_LOBES);
+        let mut mixture = Self::uniform(count);
+        let clean = |w: f32| if w.is_finite() && w > 0.0 { w } else { 0.0 };
+        let sum: f32 = lobes.iter().take(count).map(|&(_, w)| clean(w)).sum();
+        let total = if total_weight.is_finite() && total_weight > 0.0 { total_weight } else { 0.0 };
+        for (k, &(lobe, w)) in lobes.iter().take(count).enumerate() {
+            let weight = if sum > 0.0 && sum.is_finite() { clean(w) / sum } else { 1.0 / count as f32 };
+            mixture.lobes[k] = lobe;
+            mixture.weights[k] = weight;
+            mixture.weight_statistics[k] = total * weight;
+            mixture.direction_statistics[k] =
+                total * weight * mean_resultant_length(lobe.concentration()) * lobe.mean();
+        }
+        mixture
+    }
+
+    /// The raw parts, for serialization: lobes, weights, S0, S1 and the observation count.
+    pub(crate) fn parts(&self) -> (&[VmfLobe], &[f32], &[f32], &[Vec3], u32) {
+        let n = self.count;
+        (
+            &self.lobes[..n],
+            &self.weights[..n],
+            &self.weight_statistics[..n],
+            &self.direction_statistics[..n],
+            self.observations,
+        )
+    }
+
+    /// A mixture from raw parts (as [`parts`](Self::parts) gives them; the caller has
+    /// checked every value is finite, weights ≥ 0 summing to 1, S0 ≥ 0).
+    pub(crate) fn from_parts(lobes: &[VmfLobe], weights: &[f32], s0: &[f32], s1: &[Vec3], observations: u32) -> Self {
+        let count = lobes.len().clamp(1, MAX_LOBES);
+        let mut mixture = Self::uniform(count);
+        mixture.lobes[..count].copy_from_slice(&lobes[..count]);
+        mixture.weights[..count].copy_from_slice(&weights[..count]);
+        mixture.weight_statistics[..count].copy_from_slice(&s0[..count]);
+        mixture.direction_statistics[..count].copy_from_slice(&s1[..count]);
+        mixture.observations = observations;
+        mixture
+    }
+
+    /// Counts `count` more observed samples (those a batch passed to
+    /// [`absorb`](Self::absorb) carried).
+    pub fn add_observations(&mut self, count: u32) {
+        self.observations = self.observations.saturating_add(count);
     }
 
     /// M-step: sets weights, means and concentrations from the statistics. Lobes that
@@ -163,6 +253,17 @@ impl VmfMixture {
             .min_by(|&a, &b| self.lobes[a].concentration().total_cmp(&self.lobes[b].concentration()))
             .unwrap_or(0)
     }
+}
+
+/// A(κ) = coth κ − 1/κ, the mean resultant length E[μ·ω] of a vMF lobe (0 at κ = 0).
+fn mean_resultant_length(kappa: f32) -> f32 {
+    let kappa = kappa as f64;
+    if kappa < 1e-3 {
+        return (kappa / 3.0) as f32;
+    }
+    // coth κ = (1 + e^{−2κ}) / (1 − e^{−2κ}), finite for every κ > 0.
+    let e = libm::exp(-2.0 * kappa);
+    ((1.0 + e) / (1.0 - e) - 1.0 / kappa) as f32
 }
 
 impl DirectionalDistribution for VmfMixture {

@@ -1,0 +1,122 @@
+//! The directional guide of the guided methods: any of guiding-core's Q structures,
+//! chosen on the command line, built over the scene and handed to the tracer as a
+//! concrete [`Guide`] type (the tracer is generic; this enum only picks the instance).
+
+use guiding_core::{
+    GaussianMixture, GaussianMixtureSettings, Guide, GuideStats, HemisphereGrid, HemisphereGridSettings,
+};
+
+use crate::scene::Scene;
+
+/// Which Q structure guides directions.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum GuideStructure {
+    /// Probes on the surfaces, each with a hemisphere of equal-area patches.
+    Hemisphere,
+    /// A grid of cells, each with a von Mises–Fisher mixture over the sphere.
+    Mixture,
+}
+
+impl GuideStructure {
+    /// The command line's name for it.
+    pub fn name(self) -> &'static str {
+        match self {
+            GuideStructure::Hemisphere => "hemisphere",
+            GuideStructure::Mixture => "mixture",
+        }
+    }
+
+    /// Parses [`name`](Self::name)'s output.
+    pub fn from_name(s: &str) -> Result<Self, String> {
+        match s {
+            "hemisphere" => Ok(GuideStructure::Hemisphere),
+            "mixture" => Ok(GuideStructure::Mixture),
+            _ => Err(format!("unknown guide structure `{s}` (hemisphere, mixture)")),
+        }
+    }
+}
+
+/// The settings of the structure to build.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum DirectionalGuideSettings {
+    /// A [`HemisphereGrid`].
+    Hemisphere(HemisphereGridSettings),
+    /// A [`GaussianMixture`] over the scene's bounds.
+    Mixture(GaussianMixtureSettings),
+}
+
+impl From<HemisphereGridSettings> for DirectionalGuideSettings {
+    fn from(settings: HemisphereGridSettings) -> Self {
+        DirectionalGuideSettings::Hemisphere(settings)
+    }
+}
+
+impl From<GaussianMixtureSettings> for DirectionalGuideSettings {
+    fn from(settings: GaussianMixtureSettings) -> Self {
+        DirectionalGuideSettings::Mixture(settings)
+    }
+}
+
+/// A built directional guide.
+pub enum DirectionalGuide {
+    /// Probes with hemispheres of patches (boxed: the grid's lookup tables make it the
+    /// largest variant by far).
+    Hemisphere(Box<HemisphereGrid>),
+    /// Cells with vMF mixtures.
+    Mixture(GaussianMixture),
+}
+
+impl DirectionalGuide {
+    /// Builds the structure `settings` names over `scene`.
+    pub fn build(scene: &Scene, settings: DirectionalGuideSettings) -> Result<Self, String> {
+        match settings {
+            DirectionalGuideSettings::Hemisphere(settings) => HemisphereGrid::build(&scene.triangles, settings)
+                .map(|grid| DirectionalGuide::Hemisphere(Box::new(grid)))
+                .map_err(|e| format!("hemisphere guide: {e}")),
+            DirectionalGuideSettings::Mixture(settings) => {
+                let (low, high) = scene.bounds();
+                GaussianMixture::new(low, high, settings)
+                    .map(DirectionalGuide::Mixture)
+                    .map_err(|e| format!("mixture guide: {e}"))
+            }
+        }
+    }
+
+    /// Which structure it is.
+    pub fn structure(&self) -> GuideStructure {
+        match self {
+            DirectionalGuide::Hemisphere(_) => GuideStructure::Hemisphere,
+            DirectionalGuide::Mixture(_) => GuideStructure::Mixture,
+        }
+    }
+
+    /// Its counters and size.
+    pub fn stats(&self) -> GuideStats {
+        match self {
+            DirectionalGuide::Hemisphere(guide) => guide.stats(),
+            DirectionalGuide::Mixture(guide) => guide.stats(),
+        }
+    }
+
+    /// One line for the plan: what it is and its size.
+    pub fn describe(&self) -> String {
+        let stats = self.stats();
+        match self {
+            DirectionalGuide::Hemisphere(_) => format!(
+                "hemisphere grid: {} probes × {} patches, {} KiB",
+                stats.regions,
+                stats.entries_per_region,
+                stats.memory_bytes >> 10
+            ),
+            DirectionalGuide::Mixture(guide) => {
+                let [x, y, z] = guide.resolution();
+                format!(
+                    "mixture: {x}×{y}×{z} cells, {} regions × {} vMF lobes, {} KiB",
+                    stats.regions,
+                    stats.entries_per_region,
+                    stats.memory_bytes >> 10
+                )
+            }
+        }
+    }
+}
