@@ -415,6 +415,8 @@ guide_properties!(hemisphere_cylindrical, guiding_core::HemisphereGrid, cylindri
 guide_properties!(hemisphere_concentric, guiding_core::HemisphereGrid, concentric);
 table_rule_properties!(hemisphere_cylindrical_rules, guiding_core::HemisphereGrid, cylindrical);
 table_rule_properties!(hemisphere_concentric_rules, guiding_core::HemisphereGrid, concentric);
+guide_properties!(irradiance_volume, guiding_core::IrradianceVolume, support::irradiance_volume);
+table_rule_properties!(irradiance_volume_rules, guiding_core::IrradianceVolume, support::irradiance_volume);
 // The mixture learns in batches (applied between passes): its rate checks live beside it
 // in guiding-core (mixture::guide tests).
 guide_properties!(gaussian_mixture, guiding_core::GaussianMixture, support::gaussian_mixture);

@@ -3,7 +3,7 @@
 use core::sync::atomic::{AtomicU32, Ordering};
 
 /// An `AtomicU32` holding the bits of `value`.
-#[cfg_attr(not(any(feature = "hemisphere", feature = "lights", feature = "env")), allow(dead_code))]
+#[cfg_attr(not(any(feature = "hemisphere", feature = "lights", feature = "env", feature = "volume")), allow(dead_code))]
 pub(crate) fn new(value: f32) -> AtomicU32 {
     AtomicU32::new(value.to_bits())
 }

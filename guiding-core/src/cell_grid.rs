@@ -55,12 +55,21 @@ impl CellGrid {
     /// The index of the cell holding `position` (nearest cell outside the box); `None`
     /// for a non-finite position.
     #[inline]
+    #[cfg_attr(not(any(feature = "lights", feature = "env", feature = "mixture")), allow(dead_code))]
     pub(crate) fn cell(&self, position: Vec3) -> Option<u32> {
+        self.cell_and_offset(position).map(|(cell, _)| cell)
+    }
+
+    /// [`cell`](Self::cell), with `position`'s place inside the cell in [0, 1]³.
+    #[inline]
+    pub(crate) fn cell_and_offset(&self, position: Vec3) -> Option<(u32, Vec3)> {
         if !position.is_finite() {
             return None;
         }
-        let c = ((position - self.low) * self.inverse_cell_size).max(Vec3::ZERO).as_ivec3().min(self.resolution - 1);
-        Some(((c.z * self.resolution.y + c.y) * self.resolution.x + c.x) as u32)
+        let scaled = ((position - self.low) * self.inverse_cell_size).max(Vec3::ZERO);
+        let c = scaled.as_ivec3().min(self.resolution - 1);
+        let offset = (scaled - c.as_vec3()).clamp(Vec3::ZERO, Vec3::ONE);
+        Some((((c.z * self.resolution.y + c.y) * self.resolution.x + c.x) as u32, offset))
     }
 
     /// Cells along x, y and z.

@@ -109,7 +109,7 @@ pub enum DecodeError {
 /// `Ok` when `ok`, else [`Error::InvalidSetting`] naming the setting: the check every
 /// settings `validate` is made of.
 #[cfg_attr(
-    not(any(feature = "hemisphere", feature = "lights", feature = "env", feature = "mixture")),
+    not(any(feature = "hemisphere", feature = "lights", feature = "env", feature = "mixture", feature = "volume")),
     allow(dead_code)
 )]
 pub(crate) fn require(ok: bool, name: &'static str, value: f64, requirement: &'static str) -> Result<(), Error> {

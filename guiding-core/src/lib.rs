@@ -6,14 +6,14 @@ extern crate alloc;
 
 // Shared by every guide structure; a build with none of them compiled in leaves them unused.
 #[cfg_attr(
-    not(any(feature = "hemisphere", feature = "lights", feature = "env", feature = "mixture")),
+    not(any(feature = "hemisphere", feature = "lights", feature = "env", feature = "mixture", feature = "volume")),
     allow(dead_code)
 )]
 mod atomic_f32;
-#[cfg_attr(not(any(feature = "hemisphere", feature = "mixture")), allow(dead_code))]
+#[cfg_attr(not(any(feature = "hemisphere", feature = "mixture", feature = "volume")), allow(dead_code))]
 mod bytes;
 pub mod cdf;
-#[cfg(any(feature = "lights", feature = "env", feature = "mixture"))]
+#[cfg(any(feature = "lights", feature = "env", feature = "mixture", feature = "volume"))]
 mod cell_grid;
 mod distribution;
 mod error;
@@ -34,6 +34,8 @@ pub mod hemisphere;
 pub mod lights;
 #[cfg(feature = "mixture")]
 pub mod mixture;
+#[cfg(feature = "volume")]
+pub mod volume;
 
 pub use bytes::reseal_checksum;
 pub use distribution::{
@@ -56,3 +58,5 @@ pub use hemisphere::{HemisphereGrid, HemisphereGridSettings, HemisphereMapping, 
 pub use lights::{LightCell, LightChoice, LightGuide, LightGuideSettings, LightUpdateRule};
 #[cfg(feature = "mixture")]
 pub use mixture::{GaussianMixture, GaussianMixtureSettings, MixtureRegion};
+#[cfg(feature = "volume")]
+pub use volume::{IrradianceVolume, IrradianceVolumeSettings, VolumeRegion};

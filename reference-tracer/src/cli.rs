@@ -6,10 +6,11 @@ use std::time::Instant;
 use crate::scene_intersector::{IntersectorChoice, SceneIntersector};
 use clap::{Args, Parser, Subcommand};
 use guiding_core::environment::EnvironmentTiles;
+use guiding_core::volume::SphereLayout;
 use guiding_core::{
     EnvTileGuide, EnvTileGuideSettings, GaussianMixtureSettings, HemisphereGrid, HemisphereGridSettings,
-    HemisphereMapping, IntegralEstimator, LearningRate, LightGuide, LightGuideSettings, LightUpdateRule, PatchLayout,
-    UpdateRule,
+    HemisphereMapping, IntegralEstimator, IrradianceVolumeSettings, LearningRate, LightGuide, LightGuideSettings,
+    LightUpdateRule, PatchLayout, UpdateRule,
 };
 use indicatif::{ProgressBar, ProgressStyle};
 
@@ -128,12 +129,14 @@ struct ReferenceArgs {
 pub struct TraceOptions {
     /// The directional guide of the guided methods: auto (a hemisphere grid unless every
     /// surface is a mirror or glass; see the printed plan), hemisphere (probes with
-    /// hemispheres of patches), mixture (grid cells with vMF mixtures), or none. compare
+    /// hemispheres of patches), volume (full-sphere tables in an adaptive octree),
+    /// mixture (grid cells with vMF mixtures), or none. compare
     /// takes several, comma-separated, and runs each guided method with each.
     #[arg(long, default_value = "auto", value_delimiter = ',', value_parser = parse_guide_choice)]
     guide: Vec<GuideChoice>,
-    /// Lobes per mixture (--guide mixture), 1..=8.
-    #[arg(long, default_value_t = 6)]
+    /// Lobes per mixture (--guide mixture), 1..=8. 2 measured best on door and cornell
+    /// (against 3 and 6, 15 s each: fewer lobes cost less per sample).
+    #[arg(long, default_value_t = 2)]
     mixture_lobes: usize,
     /// Random seed.
     #[arg(long, default_value_t = 1)]
@@ -157,7 +160,8 @@ pub struct TraceOptions {
     /// Integral of Eq. (1): weighted (BSDF-weighted sum), stratified or max.
     #[arg(long, default_value = "weighted", value_parser = parse_integral)]
     integral: IntegralEstimator,
-    /// Patches per hemisphere as U×V, e.g. 8x16.
+    /// Patches per hemisphere as U×V, e.g. 8x16 (for --guide volume: bands of cos θ ×
+    /// sectors of φ over the whole sphere).
     #[arg(long, default_value = "8x16", value_parser = parse_patches)]
     patches: [u32; 2],
     /// cylindrical or concentric.
@@ -353,6 +357,19 @@ impl TraceOptions {
         let hemisphere = self.hemisphere_settings()?;
         Ok(match structure {
             GuideStructure::Hemisphere => hemisphere.into(),
+            GuideStructure::Volume => {
+                let defaults = IrradianceVolumeSettings::default();
+                let settings = IrradianceVolumeSettings {
+                    budget_bytes: hemisphere.budget_bytes,
+                    layout: SphereLayout { resolution: self.patches },
+                    update_rule: hemisphere.update_rule,
+                    initial_q: self.initial_q.unwrap_or(defaults.initial_q),
+                    uniform_mix: self.uniform_mix.unwrap_or(defaults.uniform_mix),
+                    ..defaults
+                };
+                settings.validate().map_err(|e| format!("volume guide: {e}"))?;
+                settings.into()
+            }
             GuideStructure::Mixture => {
                 let defaults = GaussianMixtureSettings::default();
                 let settings = GaussianMixtureSettings {
@@ -483,6 +500,15 @@ pub struct Prepared {
 }
 
 impl Prepared {
+    /// Bytes of every structure `method` learns with: the directional guide (guided
+    /// methods), the light guide and the environment guide (as built by the plan).
+    pub fn learned_bytes(&self, method: Method) -> usize {
+        let directions = self.guide.as_ref().filter(|_| method.uses_guide()).map_or(0, |g| g.stats().memory_bytes);
+        let lights = self.light_guide.as_ref().map_or(0, LightGuide::memory_bytes);
+        let environment = self.environment_guide.as_ref().map_or(0, EnvTileGuide::memory_bytes);
+        directions + lights + environment
+    }
+
     /// Renders with the learners built (the directional guide only for guided
     /// methods), calling `on_pass` after every pass; the guide's structure picks the
     /// tracer's instance.
@@ -497,6 +523,10 @@ impl Prepared {
         match self.guide.as_mut().filter(|_| settings.integrator.method.uses_guide()) {
             Some(DirectionalGuide::Hemisphere(guide)) => {
                 let learners = Learners { directions: Some(guide.as_mut()), lights, environment };
+                render(scene, intersector, learners, settings, &mut on_pass)
+            }
+            Some(DirectionalGuide::Volume(guide)) => {
+                let learners = Learners { directions: Some(guide), lights, environment };
                 render(scene, intersector, learners, settings, &mut on_pass)
             }
             Some(DirectionalGuide::Mixture(guide)) => {
@@ -919,6 +949,7 @@ fn run_compare(args: &CompareArgs) -> Result<(), String> {
     let pool = thread_pool(options.threads)?;
     let mut rows = Vec::new();
     let mut names = Vec::new();
+    let mut learned_bytes = Vec::new();
     for run in expand_guides(&args.methods, &options.guide) {
         let (compared, name) = (run.compared, run.name);
         let method = compared.method;
@@ -954,11 +985,12 @@ fn run_compare(args: &CompareArgs) -> Result<(), String> {
         std::fs::write(sibling(&image_path, "json"), serde_json::to_string_pretty(&json).unwrap_or_default())
             .map_err(|e| format!("cannot write statistics: {e}"))?;
         rows.extend(crate::report::checkpoint_rows(&name, &checkpoints));
+        learned_bytes.push(prepared.learned_bytes(method));
         names.push(name);
     }
     crate::report::write_csv(&args.out.join("compare.csv"), &rows)?;
     let baseline = if names.iter().any(|n| n == "nee") { "nee" } else { names[0].as_str() };
-    let table = crate::report::markdown(&rows, &names, &report_times, baseline);
+    let table = crate::report::markdown(&rows, &names, &learned_bytes, &report_times, baseline);
     let title = format!("{}: relMSE against time", args.scene.display());
     let markdown =
         format!("# {title}\n\n{} s per method, reference {}\n\n{table}", args.seconds, args.reference.display());

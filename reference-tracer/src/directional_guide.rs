@@ -4,6 +4,7 @@
 
 use guiding_core::{
     GaussianMixture, GaussianMixtureSettings, Guide, GuideStats, HemisphereGrid, HemisphereGridSettings,
+    IrradianceVolume, IrradianceVolumeSettings,
 };
 
 use crate::scene::Scene;
@@ -13,6 +14,8 @@ use crate::scene::Scene;
 pub enum GuideStructure {
     /// Probes on the surfaces, each with a hemisphere of equal-area patches.
     Hemisphere,
+    /// Full-sphere tables at the leaves of an adaptive octree, found by position.
+    Volume,
     /// A grid of cells, each with a von Mises–Fisher mixture over the sphere.
     Mixture,
 }
@@ -22,6 +25,7 @@ impl GuideStructure {
     pub fn name(self) -> &'static str {
         match self {
             GuideStructure::Hemisphere => "hemisphere",
+            GuideStructure::Volume => "volume",
             GuideStructure::Mixture => "mixture",
         }
     }
@@ -30,8 +34,9 @@ impl GuideStructure {
     pub fn from_name(s: &str) -> Result<Self, String> {
         match s {
             "hemisphere" => Ok(GuideStructure::Hemisphere),
+            "volume" => Ok(GuideStructure::Volume),
             "mixture" => Ok(GuideStructure::Mixture),
-            _ => Err(format!("unknown guide structure `{s}` (hemisphere, mixture)")),
+            _ => Err(format!("unknown guide structure `{s}` (hemisphere, volume, mixture)")),
         }
     }
 }
@@ -41,8 +46,16 @@ impl GuideStructure {
 pub enum DirectionalGuideSettings {
     /// A [`HemisphereGrid`].
     Hemisphere(HemisphereGridSettings),
+    /// An [`IrradianceVolume`] over the scene's bounds.
+    Volume(IrradianceVolumeSettings),
     /// A [`GaussianMixture`] over the scene's bounds.
     Mixture(GaussianMixtureSettings),
+}
+
+impl From<IrradianceVolumeSettings> for DirectionalGuideSettings {
+    fn from(settings: IrradianceVolumeSettings) -> Self {
+        DirectionalGuideSettings::Volume(settings)
+    }
 }
 
 impl From<HemisphereGridSettings> for DirectionalGuideSettings {
@@ -62,6 +75,8 @@ pub enum DirectionalGuide {
     /// Probes with hemispheres of patches (boxed: the grid's lookup tables make it the
     /// largest variant by far).
     Hemisphere(Box<HemisphereGrid>),
+    /// Octree leaves with full-sphere tables.
+    Volume(IrradianceVolume),
     /// Cells with vMF mixtures.
     Mixture(GaussianMixture),
 }
@@ -73,6 +88,12 @@ impl DirectionalGuide {
             DirectionalGuideSettings::Hemisphere(settings) => HemisphereGrid::build(&scene.triangles, settings)
                 .map(|grid| DirectionalGuide::Hemisphere(Box::new(grid)))
                 .map_err(|e| format!("hemisphere guide: {e}")),
+            DirectionalGuideSettings::Volume(settings) => {
+                let (low, high) = scene.bounds();
+                IrradianceVolume::new(low, high, settings)
+                    .map(DirectionalGuide::Volume)
+                    .map_err(|e| format!("volume guide: {e}"))
+            }
             DirectionalGuideSettings::Mixture(settings) => {
                 let (low, high) = scene.bounds();
                 GaussianMixture::new(low, high, settings)
@@ -86,6 +107,7 @@ impl DirectionalGuide {
     pub fn structure(&self) -> GuideStructure {
         match self {
             DirectionalGuide::Hemisphere(_) => GuideStructure::Hemisphere,
+            DirectionalGuide::Volume(_) => GuideStructure::Volume,
             DirectionalGuide::Mixture(_) => GuideStructure::Mixture,
         }
     }
@@ -94,6 +116,7 @@ impl DirectionalGuide {
     pub fn stats(&self) -> GuideStats {
         match self {
             DirectionalGuide::Hemisphere(guide) => guide.stats(),
+            DirectionalGuide::Volume(guide) => guide.stats(),
             DirectionalGuide::Mixture(guide) => guide.stats(),
         }
     }
@@ -108,6 +131,16 @@ impl DirectionalGuide {
                 stats.entries_per_region,
                 stats.memory_bytes >> 10
             ),
+            DirectionalGuide::Volume(guide) => {
+                let [x, y, z] = guide.resolution();
+                format!(
+                    "volume: {x}×{y}×{z} cells growing to {} KiB, {} leaves × {} patches, {} KiB",
+                    guide.settings().budget_bytes >> 10,
+                    stats.regions,
+                    stats.entries_per_region,
+                    stats.memory_bytes >> 10
+                )
+            }
             DirectionalGuide::Mixture(guide) => {
                 let [x, y, z] = guide.resolution();
                 format!(

@@ -79,23 +79,30 @@ fn at_time<'a>(rows: &'a [ReportRow], method: &str, seconds: f64) -> Option<&'a 
     rows.iter().filter(|r| r.method == method && r.seconds >= seconds).min_by(|a, b| a.seconds.total_cmp(&b.seconds))
 }
 
-/// A markdown summary: per method its final figures, and relMSE at each of `times`
-/// (the first checkpoint at or after it) with its ratio to `baseline`'s.
-pub fn markdown(rows: &[ReportRow], methods: &[String], times: &[f64], baseline: &str) -> String {
-    let mut text = String::from("| method | spp | paths/s | non-zero share | mean path length |");
+/// A markdown summary: per method its final figures and the bytes of what it learned
+/// (`learned_bytes[i]` for `methods[i]`), and relMSE at each of `times` (the first
+/// checkpoint at or after it) with its ratio to `baseline`'s.
+pub fn markdown(
+    rows: &[ReportRow],
+    methods: &[String],
+    learned_bytes: &[usize],
+    times: &[f64],
+    baseline: &str,
+) -> String {
+    let mut text = String::from("| method | spp | paths/s | non-zero share | mean path length | learned bytes |");
     for t in times {
         text += &format!(" relMSE @ {t} s | ÷ {baseline} |");
     }
-    text += "\n|---|---|---|---|---|";
+    text += "\n|---|---|---|---|---|---|";
     text += &"---|---|".repeat(times.len());
     text += "\n";
-    for method in methods {
+    for (method, bytes) in methods.iter().zip(learned_bytes) {
         let Some(last) = rows.iter().filter(|r| &r.method == method).max_by(|a, b| a.seconds.total_cmp(&b.seconds))
         else {
             continue;
         };
         text += &format!(
-            "| {method} | {} | {:.0} | {:.4} | {:.2} |",
+            "| {method} | {} | {:.0} | {:.4} | {:.2} | {bytes} |",
             last.spp, last.paths_per_second, last.nonzero_share, last.mean_path_length
         );
         for &t in times {

@@ -1,12 +1,15 @@
 //! The estimators agree: a white furnace converges to Le/(1-ρ) under every integrator and
 //! light selection; on the Cornell box pt, nee and guided (every update rule, hemisphere
-//! grid and mixture) give
+//! grid, volume and mixture) give
 //! per-image means within 4 standard errors of each other, and on many_lights uniform,
 //! power and learned light selection do; the errors are taken from per-pass image means.
 
 mod support;
 
-use guiding_core::{GaussianMixtureSettings, HemisphereGridSettings, IntegralEstimator, LearningRate, UpdateRule};
+use guiding_core::{
+    GaussianMixtureSettings, HemisphereGridSettings, IntegralEstimator, IrradianceVolumeSettings, LearningRate,
+    UpdateRule,
+};
 use reference_tracer::directional_guide::DirectionalGuideSettings;
 use reference_tracer::integrator::{EnvironmentSampling, LightSelection, Method};
 use serde_json::json;
@@ -79,7 +82,8 @@ fn white_furnace_converges_to_le_over_one_minus_albedo() {
 }
 
 /// pt, then guided by a hemisphere grid of `probes` probes under every learning rate ×
-/// integral estimator, then guided-nee; then guided and guided-nee by a mixture.
+/// integral estimator, then guided-nee; then guided and guided-nee by a mixture and by
+/// an irradiance volume.
 fn methods_and_guides(probes: usize) -> Vec<(String, Method, Option<DirectionalGuideSettings>)> {
     let mut cases: Vec<(String, Method, Option<UpdateRule>)> = vec![("pt".into(), Method::Pt, None)];
     let rates = [
@@ -112,6 +116,18 @@ fn methods_and_guides(probes: usize) -> Vec<(String, Method, Option<DirectionalG
         ("guided-nee mixture", Method::GuidedNee, LearningRate::SimpleAverage),
     ] {
         cases.push((name.into(), method, Some(mixture(rate).into())));
+    }
+    // A small volume splits within the first passes, so the tree changes under learning.
+    let volume = |learning_rate| IrradianceVolumeSettings {
+        budget_bytes: 256 << 10,
+        update_rule: UpdateRule { learning_rate, ..Default::default() },
+        ..Default::default()
+    };
+    for (name, method, rate) in [
+        ("guided volume simple", Method::Guided, LearningRate::SimpleAverage),
+        ("guided-nee volume", Method::GuidedNee, LearningRate::SimpleAverage),
+    ] {
+        cases.push((name.into(), method, Some(volume(rate).into())));
     }
     cases
 }

@@ -6,7 +6,8 @@ use glam::{Vec2, Vec3};
 use guiding_core::mixture::{VmfLobe, VmfMixture};
 use guiding_core::{
     DirectionSample, DirectionalDistribution, Frame, GaussianMixture, GaussianMixtureSettings, Guide, HemisphereGrid,
-    HemisphereGridSettings, HemisphereMapping, MixtureRegion, PatchLayout, ProbeId, Triangle, UpdateRule,
+    HemisphereGridSettings, HemisphereMapping, IrradianceVolume, IrradianceVolumeSettings, MixtureRegion, PatchLayout,
+    ProbeId, Triangle, UpdateRule, VolumeRegion,
 };
 
 /// Which way a box's faces look.
@@ -123,6 +124,47 @@ impl TableAccess for HemisphereGrid {
         let local = Frame::from_normal(self.probe_normals()[region.0 as usize]).to_local(direction);
         let patch = self.settings().layout.patch_of(local).expect("direction in the probe's hemisphere");
         self.q(region, patch)
+    }
+}
+
+/// An irradiance volume over [`box_walls`]' box: a 3×3×3 grid of 16×16-patch leaves
+/// with room to split.
+pub fn irradiance_volume(rule: UpdateRule) -> IrradianceVolume {
+    let settings = IrradianceVolumeSettings {
+        budget_bytes: 400 << 10,
+        resolution: Some([3, 3, 3]),
+        update_rule: rule,
+        ..Default::default()
+    };
+    IrradianceVolume::new(Vec3::NEG_ONE, Vec3::ONE, settings).expect("volume over the box")
+}
+
+impl GuideAccess for IrradianceVolume {
+    fn test_points(&self) -> Vec<(Vec3, Vec3)> {
+        box_test_points()
+    }
+
+    fn entry_count(&self) -> usize {
+        self.patch_count()
+    }
+
+    fn set_entries(&mut self, region: VolumeRegion, values: &[f32]) {
+        self.set_q_values(region.leaf, values);
+    }
+
+    fn all_values(&self) -> Vec<f32> {
+        self.q_values().iter().map(|q| f32::from_bits(q.load(std::sync::atomic::Ordering::Relaxed))).collect()
+    }
+
+    fn floor(&self) -> f32 {
+        self.settings().q_floor
+    }
+}
+
+impl TableAccess for IrradianceVolume {
+    fn entry_value(&self, region: VolumeRegion, direction: Vec3) -> f32 {
+        let patch = self.settings().layout.patch_of(direction).expect("a unit direction");
+        self.q(region.leaf, patch)
     }
 }
 

@@ -1,0 +1,563 @@
+//! [`IrradianceVolume`]: full-sphere tables of Q at the leaves of an adaptive octree
+//! over the scene, found by position alone.
+
+use alloc::vec::Vec;
+use core::sync::atomic::{AtomicU32, AtomicUsize, Ordering};
+
+use glam::{Vec2, Vec3};
+
+use crate::atomic_f32;
+use crate::cdf::{build_cdf, cdf_probability, sample_cdf};
+use crate::cell_grid::CellGrid;
+use crate::distribution::{DirectionSample, DirectionalDistribution, MIN_SAMPLED_COS_THETA};
+use crate::error::Error;
+use crate::guide::{Guide, GuideStats};
+use crate::scattering::ScatteringFunction;
+use crate::update_rule::{blend, classify_target, IntegralEstimator, UpdateOutcome};
+
+use super::settings::{IrradianceVolumeSettings, BYTES_PER_NODE};
+use super::sphere_layout::SphereLayout;
+
+/// Marks a node entry as a leaf (the low bits are its leaf index); otherwise the entry is
+/// the index of the node's first of eight children.
+pub(crate) const LEAF: u32 = 1 << 31;
+
+/// A located region of an [`IrradianceVolume`]: the leaf holding the point, and the
+/// normal whose hemisphere sampling folds the sphere onto.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct VolumeRegion {
+    /// Index of the leaf (its table).
+    pub leaf: u32,
+    /// Unit normal of the surface point, facing the side the path arrives from.
+    pub normal: Vec3,
+}
+
+/// Q(x, ω) in full-sphere tables of equal-area patches at the leaves of an octree over
+/// the scene's bounds (Greger et al.'s irradiance volume, with Q in place of radiance):
+/// lookup by position only, so one table serves every surface that passes through its
+/// leaf, whatever their normals.
+///
+/// The tree starts as a regular grid taking `initial_share` of the byte budget; between
+/// passes, leaves that took at least `split_updates_per_patch × patches` updates since
+/// they were made split into eight children (most-updated first, while the budget
+/// lasts), each inheriting the parent's Q and an eighth of its visit counts. So memory
+/// goes where paths go.
+///
+/// Sampling at a surface folds the sphere onto the normal's hemisphere: a direction drawn
+/// ∝ Q below the surface is mirrored across the tangent plane, and the pdf of ω above it
+/// is p(ω) + p(mirror(ω)). That is exact, keeps every upper direction's pdf ≥
+/// `uniform_mix/(4π)`, and needs no per-normal normalisation of the table.
+///
+/// ```
+/// use guiding_core::volume::{IrradianceVolume, IrradianceVolumeSettings};
+/// use guiding_core::{Guide, Pcg32};
+/// use glam::Vec3;
+/// let mut guide = IrradianceVolume::new(Vec3::ZERO, Vec3::ONE, IrradianceVolumeSettings::default()).unwrap();
+/// let region = guide.locate(Vec3::splat(0.5), Vec3::Y).unwrap();
+/// let mut rng = Pcg32::new(1, 1);
+/// for _ in 0..20_000 {
+///     let s = guide.sample(region, rng.next_vec2());
+///     guide.update(region, s.direction, 10.0 * s.direction.x.max(0.0).powi(8));
+/// }
+/// guide.rebuild_sampling();
+/// assert!(guide.pdf(region, Vec3::new(0.9, 0.43, 0.0).normalize()) > 5.0 * guide.pdf(region, Vec3::Y));
+/// ```
+pub struct IrradianceVolume {
+    settings: IrradianceVolumeSettings,
+    low: Vec3,
+    high: Vec3,
+    grid: CellGrid,
+    /// The tree: the grid's cells first, then every split's eight children in a row.
+    nodes: Vec<u32>,
+    q: Vec<AtomicU32>,
+    patch_visits: Vec<AtomicU32>,
+    leaf_visits: Vec<AtomicU32>,
+    /// Leaf visits when its CDF was last built (unchanged leaves are not rebuilt).
+    visits_at_build: Vec<u32>,
+    cdf: Vec<f32>,
+    patch_centers: Vec<Vec3>,
+    epoch: u32,
+    rejected_non_finite: AtomicUsize,
+    rejected_negative: AtomicUsize,
+}
+
+/// The sampling distribution of one region: its leaf's CDF over the sphere, folded onto
+/// the normal's hemisphere.
+#[derive(Clone, Copy, Debug)]
+pub struct VolumeDistribution<'a> {
+    cdf: &'a [f32],
+    layout: SphereLayout,
+    normal: Vec3,
+}
+
+impl VolumeDistribution<'_> {
+    fn sphere_pdf(&self, direction: Vec3) -> f32 {
+        match self.layout.patch_of(direction) {
+            Some(patch) => cdf_probability(self.cdf, patch) / self.layout.patch_solid_angle(),
+            None => 0.0,
+        }
+    }
+}
+
+/// `direction` mirrored across the plane orthogonal to unit `normal`.
+#[inline]
+fn mirror(direction: Vec3, normal: Vec3) -> Vec3 {
+    (direction - 2.0 * direction.dot(normal) * normal).normalize()
+}
+
+impl DirectionalDistribution for VolumeDistribution<'_> {
+    fn sample(&self, u: Vec2) -> DirectionSample {
+        let (patch, rest) = sample_cdf(self.cdf, u.x);
+        let mut direction = self.layout.direction_in_patch(patch, Vec2::new(rest, u.y));
+        if direction.dot(self.normal) < 0.0 {
+            direction = mirror(direction, self.normal);
+        }
+        // Like the hemisphere samplers, keep cos θ ≥ MIN_SAMPLED_COS_THETA, so rounding in
+        // the mirror never leaves a sample below the horizon its pdf calls impossible.
+        let cos_theta = direction.dot(self.normal);
+        if cos_theta < MIN_SAMPLED_COS_THETA {
+            direction = (direction + (MIN_SAMPLED_COS_THETA - cos_theta) * self.normal).normalize();
+        }
+        DirectionSample { direction, pdf: self.pdf(direction) }
+    }
+
+    fn pdf(&self, direction: Vec3) -> f32 {
+        // Below the surface, or NaN: no density.
+        if direction.dot(self.normal).is_nan() || direction.dot(self.normal) < 0.0 {
+            return 0.0;
+        }
+        self.sphere_pdf(direction) + self.sphere_pdf(mirror(direction, self.normal))
+    }
+}
+
+/// The pieces of a volume, as serialization reads and writes them.
+pub(crate) struct VolumeState {
+    pub(crate) nodes: Vec<u32>,
+    pub(crate) q: Vec<f32>,
+    pub(crate) patch_visits: Vec<u32>,
+    pub(crate) leaf_visits: Vec<u32>,
+    pub(crate) cdf: Vec<f32>,
+    pub(crate) epoch: u32,
+    pub(crate) rejected_non_finite: usize,
+    pub(crate) rejected_negative: usize,
+}
+
+impl IrradianceVolume {
+    /// A volume over `low..high` (scene units; points outside use the nearest cell),
+    /// every patch at `initial_q`.
+    pub fn new(low: Vec3, high: Vec3, settings: IrradianceVolumeSettings) -> Result<Self, Error> {
+        let grid = Self::grid_for(low, high, &settings)?;
+        let leaves = grid.cell_count();
+        let patches = settings.layout.patch_count();
+        let state = VolumeState {
+            nodes: (0..leaves as u32).map(|leaf| LEAF | leaf).collect(),
+            q: alloc::vec![settings.initial_q; leaves * patches],
+            patch_visits: alloc::vec![0; leaves * patches],
+            leaf_visits: alloc::vec![0; leaves],
+            cdf: alloc::vec![0.0; leaves * patches],
+            epoch: 0,
+            rejected_non_finite: 0,
+            rejected_negative: 0,
+        };
+        let mut volume = Self::assemble(low, high, settings, grid, state);
+        volume.build_cdfs(true);
+        Ok(volume)
+    }
+
+    /// The initial grid `new` lays over `low..high` (checks the settings; allocates
+    /// nothing).
+    pub(crate) fn grid_for(low: Vec3, high: Vec3, settings: &IrradianceVolumeSettings) -> Result<CellGrid, Error> {
+        settings.validate()?;
+        let initial = (settings.budget_bytes as f64 * settings.initial_share as f64) as usize;
+        let per_cell = settings.bytes_per_leaf() + BYTES_PER_NODE;
+        // A grid given by hand must fit the whole budget; one sized here, its share.
+        let budget = if settings.resolution.is_some() { settings.budget_bytes } else { initial.max(per_cell) };
+        let grid = CellGrid::new(low, high, settings.resolution, budget, per_cell)?;
+        if grid.cell_count() * per_cell > settings.budget_bytes {
+            let needed_bytes = grid.cell_count() * per_cell;
+            return Err(Error::BudgetTooSmall { budget_bytes: settings.budget_bytes, needed_bytes });
+        }
+        Ok(grid)
+    }
+
+    /// A volume from its parts (decoded, or fresh); the CDF is taken as given.
+    pub(crate) fn assemble(
+        low: Vec3,
+        high: Vec3,
+        settings: IrradianceVolumeSettings,
+        grid: CellGrid,
+        state: VolumeState,
+    ) -> Self {
+        let layout = settings.layout;
+        let atomics = |values: &[u32]| values.iter().map(|&v| AtomicU32::new(v)).collect::<Vec<_>>();
+        Self {
+            settings,
+            low,
+            high,
+            grid,
+            nodes: state.nodes,
+            q: state.q.iter().map(|&q| atomic_f32::new(q)).collect(),
+            patch_visits: atomics(&state.patch_visits),
+            visits_at_build: state.leaf_visits.clone(),
+            leaf_visits: atomics(&state.leaf_visits),
+            cdf: state.cdf,
+            patch_centers: (0..layout.patch_count()).map(|k| layout.direction_in_patch(k, Vec2::splat(0.5))).collect(),
+            epoch: state.epoch,
+            rejected_non_finite: AtomicUsize::new(state.rejected_non_finite),
+            rejected_negative: AtomicUsize::new(state.rejected_negative),
+        }
+    }
+
+    /// The settings it was built with.
+    pub fn settings(&self) -> &IrradianceVolumeSettings {
+        &self.settings
+    }
+
+    /// The box the tree covers.
+    pub fn bounds(&self) -> (Vec3, Vec3) {
+        (self.low, self.high)
+    }
+
+    /// The initial grid's cells along x, y and z.
+    pub fn resolution(&self) -> [u32; 3] {
+        self.grid.resolution()
+    }
+
+    /// Number of leaves (tables).
+    pub fn leaf_count(&self) -> usize {
+        self.leaf_visits.len()
+    }
+
+    /// Number of tree nodes (the grid's cells and every split's children).
+    pub fn node_count(&self) -> usize {
+        self.nodes.len()
+    }
+
+    /// Patches per leaf.
+    pub fn patch_count(&self) -> usize {
+        self.patch_centers.len()
+    }
+
+    /// Q of `patch` in `leaf`.
+    pub fn q(&self, leaf: u32, patch: usize) -> f32 {
+        atomic_f32::load(&self.q[leaf as usize * self.patch_count() + patch])
+    }
+
+    /// Every Q, leaf after leaf (f32 bits).
+    pub fn q_values(&self) -> &[AtomicU32] {
+        &self.q
+    }
+
+    /// Overwrites a leaf's Q table (clamped to `[q_floor, f32::MAX]`, non-finite values
+    /// to the floor); takes effect at the next rebuild.
+    pub fn set_q_values(&mut self, leaf: u32, values: &[f32]) {
+        let patches = self.patch_count();
+        let floor = self.settings.q_floor;
+        for (slot, &v) in self.q[leaf as usize * patches..(leaf as usize + 1) * patches].iter().zip(values) {
+            let v = if v.is_finite() { v.clamp(floor, f32::MAX) } else { floor };
+            slot.store(v.to_bits(), Ordering::Relaxed);
+        }
+        // Make the leaf look changed, so the next rebuild builds its CDF.
+        self.visits_at_build[leaf as usize] = u32::MAX;
+    }
+
+    /// Bytes held by the tables and the tree.
+    pub fn memory_bytes(&self) -> usize {
+        self.leaf_count() * self.settings.bytes_per_leaf() + self.nodes.len() * BYTES_PER_NODE
+    }
+
+    /// The state, for serialization.
+    pub(crate) fn state(&self) -> VolumeState {
+        let load = |values: &[AtomicU32]| values.iter().map(|v| v.load(Ordering::Relaxed)).collect::<Vec<_>>();
+        VolumeState {
+            nodes: self.nodes.clone(),
+            q: self.q.iter().map(atomic_f32::load).collect(),
+            patch_visits: load(&self.patch_visits),
+            leaf_visits: load(&self.leaf_visits),
+            cdf: self.cdf.clone(),
+            epoch: self.epoch,
+            rejected_non_finite: self.rejected_non_finite.load(Ordering::Relaxed),
+            rejected_negative: self.rejected_negative.load(Ordering::Relaxed),
+        }
+    }
+
+    /// The leaf holding `position`: down the tree from its grid cell by octants.
+    #[inline]
+    fn leaf_at(&self, position: Vec3) -> Option<u32> {
+        let (cell, mut offset) = self.grid.cell_and_offset(position)?;
+        let mut entry = self.nodes[cell as usize];
+        while entry & LEAF == 0 {
+            let upper = offset.cmpge(Vec3::splat(0.5));
+            let octant = upper.x as u32 | (upper.y as u32) << 1 | (upper.z as u32) << 2;
+            offset = offset * 2.0 - Vec3::select(upper, Vec3::ONE, Vec3::ZERO);
+            entry = self.nodes[(entry + octant) as usize];
+        }
+        Some(entry & !LEAF)
+    }
+
+    fn build_cdfs(&mut self, all: bool) {
+        let patches = self.patch_count();
+        let mix = self.settings.uniform_mix;
+        let rows = self.cdf.chunks_exact_mut(patches).zip(self.q.chunks_exact(patches));
+        for ((cdf, q), (visits, built)) in rows.zip(self.leaf_visits.iter().zip(&mut self.visits_at_build)) {
+            let visits = visits.load(Ordering::Relaxed);
+            if all || visits != *built {
+                build_cdf(cdf, mix, |k| atomic_f32::load(&q[k]));
+                *built = visits;
+            }
+        }
+    }
+
+    /// Splits the leaves that took enough updates, most-updated first, while the budget
+    /// holds the seven new leaves and eight nodes each split adds.
+    fn split_busy_leaves(&mut self) {
+        let patches = self.patch_count();
+        let threshold = (self.settings.split_updates_per_patch as f64 * patches as f64) as u64;
+        let mut busy: Vec<(u32, u32)> = Vec::new();
+        for (node, &entry) in self.nodes.iter().enumerate() {
+            if entry & LEAF != 0 {
+                let visits = self.leaf_visits[(entry & !LEAF) as usize].load(Ordering::Relaxed);
+                if visits as u64 >= threshold {
+                    busy.push((visits, node as u32));
+                }
+            }
+        }
+        if busy.is_empty() {
+            return;
+        }
+        busy.sort_unstable_by(|a, b| b.0.cmp(&a.0).then(a.1.cmp(&b.1)));
+        let split_bytes = 7 * self.settings.bytes_per_leaf() + 8 * BYTES_PER_NODE;
+        let room = self.settings.budget_bytes.saturating_sub(self.memory_bytes()) / split_bytes;
+        busy.truncate(room);
+        if busy.is_empty() {
+            return;
+        }
+        let new_leaves = 7 * busy.len();
+        self.nodes.reserve_exact(8 * busy.len());
+        self.q.reserve_exact(new_leaves * patches);
+        self.patch_visits.reserve_exact(new_leaves * patches);
+        self.cdf.reserve_exact(new_leaves * patches);
+        self.leaf_visits.reserve_exact(new_leaves);
+        self.visits_at_build.reserve_exact(new_leaves);
+        for &(_, node) in &busy {
+            let parent = self.nodes[node as usize] & !LEAF;
+            let first_child = self.nodes.len() as u32;
+            self.nodes[node as usize] = first_child;
+            // The first child keeps the parent's table; seven copies follow.
+            self.nodes.push(LEAF | parent);
+            let share = |v: u32| v / 8;
+            let row = parent as usize * patches..(parent as usize + 1) * patches;
+            for slot in &self.patch_visits[row.clone()] {
+                slot.store(share(slot.load(Ordering::Relaxed)), Ordering::Relaxed);
+            }
+            let leaf_visits = share(self.leaf_visits[parent as usize].load(Ordering::Relaxed));
+            self.leaf_visits[parent as usize].store(leaf_visits, Ordering::Relaxed);
+            for _ in 0..7 {
+                let leaf = self.leaf_visits.len() as u32;
+                self.nodes.push(LEAF | leaf);
+                for k in row.clone() {
+                    self.q.push(AtomicU32::new(self.q[k].load(Ordering::Relaxed)));
+                    self.patch_visits.push(AtomicU32::new(self.patch_visits[k].load(Ordering::Relaxed)));
+                    self.cdf.push(self.cdf[k]);
+                }
+                self.leaf_visits.push(AtomicU32::new(leaf_visits));
+                self.visits_at_build.push(u32::MAX);
+            }
+            self.visits_at_build[parent as usize] = u32::MAX;
+        }
+    }
+}
+
+impl Guide for IrradianceVolume {
+    type Region = VolumeRegion;
+    type Distribution<'a> = VolumeDistribution<'a>;
+
+    fn locate(&self, position: Vec3, normal: Vec3) -> Option<VolumeRegion> {
+        let normal = normal.try_normalize()?;
+        Some(VolumeRegion { leaf: self.leaf_at(position)?, normal })
+    }
+
+    fn distribution(&self, region: VolumeRegion) -> VolumeDistribution<'_> {
+        let patches = self.patch_count();
+        let start = region.leaf as usize * patches;
+        VolumeDistribution {
+            cdf: &self.cdf[start..start + patches],
+            layout: self.settings.layout,
+            normal: region.normal,
+        }
+    }
+
+    fn update(&self, region: VolumeRegion, direction: Vec3, target: f32) -> UpdateOutcome {
+        let target = match classify_target(target) {
+            Ok(t) => t,
+            Err(rejected) => {
+                let counter = match rejected {
+                    UpdateOutcome::RejectedNegative => &self.rejected_negative,
+                    _ => &self.rejected_non_finite,
+                };
+                counter.fetch_add(1, Ordering::Relaxed);
+                return rejected;
+            }
+        };
+        let Some(patch) = self.settings.layout.patch_of(direction) else {
+            return UpdateOutcome::OutsideDomain;
+        };
+        let leaf = region.leaf as usize;
+        let index = leaf * self.patch_count() + patch;
+        let patch_visits = atomic_f32::increment_saturating(&self.patch_visits[index]);
+        let leaf_visits = atomic_f32::increment_saturating(&self.leaf_visits[leaf]);
+        let alpha = self.settings.update_rule.learning_rate.alpha(patch_visits, leaf_visits, self.epoch);
+        let floor = self.settings.q_floor;
+        atomic_f32::update(&self.q[index], |q| blend(q, target, alpha, floor));
+        UpdateOutcome::Accepted
+    }
+
+    /// Sums over the leaf's patches: Q_j·fs(ω_j)·cos θ_j·ΔΩ at patch centres
+    /// (`BsdfWeightedSum`; a Lambertian BSDF uses the region's normal), at one jittered
+    /// direction per patch (`StratifiedPatches`), or π·max_j of the centre terms
+    /// (`MaxEntry`).
+    fn estimate_integral<S: ScatteringFunction + ?Sized>(
+        &self,
+        region: VolumeRegion,
+        wo: Vec3,
+        bsdf: &S,
+        u: Vec2,
+    ) -> f32 {
+        let patches = self.patch_count();
+        let q = &self.q[region.leaf as usize * patches..(region.leaf as usize + 1) * patches];
+        let solid_angle = self.settings.layout.patch_solid_angle() as f64;
+        let at_center = |k: usize| match bsdf.lambertian_albedo() {
+            Some(albedo) => albedo * core::f32::consts::FRAC_1_PI * self.patch_centers[k].dot(region.normal).max(0.0),
+            None => bsdf.eval_cos(self.patch_centers[k], wo),
+        };
+        let terms = (0..patches).map(|k| atomic_f32::load(&q[k]) as f64);
+        let estimate = match self.settings.update_rule.integral {
+            IntegralEstimator::BsdfWeightedSum => {
+                solid_angle * terms.enumerate().map(|(k, q)| q * at_center(k) as f64).sum::<f64>()
+            }
+            IntegralEstimator::StratifiedPatches => {
+                let layout = self.settings.layout;
+                let jittered = |k: usize| bsdf.eval_cos(layout.direction_in_patch(k, u), wo) as f64;
+                solid_angle * terms.enumerate().map(|(k, q)| q * jittered(k)).sum::<f64>()
+            }
+            IntegralEstimator::MaxEntry => {
+                core::f64::consts::PI * terms.enumerate().map(|(k, q)| q * at_center(k) as f64).fold(0.0, f64::max)
+            }
+        };
+        estimate.min(f32::MAX as f64) as f32
+    }
+
+    fn rebuild_sampling(&mut self) {
+        self.split_busy_leaves();
+        self.build_cdfs(false);
+        self.epoch = self.epoch.saturating_add(1);
+    }
+
+    fn stats(&self) -> GuideStats {
+        let visits = self.patch_visits.iter().map(|v| v.load(Ordering::Relaxed));
+        let (accepted, visited) =
+            visits.fold((0u64, 0usize), |(sum, count), v| (sum + v as u64, count + (v > 0) as usize));
+        GuideStats {
+            regions: self.leaf_count(),
+            entries_per_region: self.patch_count(),
+            memory_bytes: self.memory_bytes(),
+            accepted_updates: accepted,
+            visited_entries: visited,
+            rejected_non_finite: self.rejected_non_finite.load(Ordering::Relaxed) as u64,
+            rejected_negative: self.rejected_negative.load(Ordering::Relaxed) as u64,
+            epochs: self.epoch,
+        }
+    }
+
+    fn validate(&self) -> Result<(), Error> {
+        super::serialize::check_tree(&self.nodes, self.grid.cell_count(), self.leaf_count())?;
+        let floor = self.settings.q_floor;
+        if let Some(i) = self.q.iter().position(|q| !(atomic_f32::load(q).is_finite() && atomic_f32::load(q) >= floor))
+        {
+            return Err(crate::bytes::invalid_field("q", i, "finite and at least q_floor"));
+        }
+        super::serialize::check_cdfs(&self.cdf, self.patch_count())
+    }
+
+    fn to_bytes(&self) -> Vec<u8> {
+        super::serialize::encode(self)
+    }
+
+    fn from_bytes(bytes: &[u8]) -> Result<Self, Error> {
+        super::serialize::decode(bytes)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::low_discrepancy::Pcg32;
+    use crate::validation::{chi_square_test, pdf_integral, ChiSquareSettings};
+
+    fn volume(budget_bytes: usize) -> IrradianceVolume {
+        let settings = IrradianceVolumeSettings { budget_bytes, ..Default::default() };
+        IrradianceVolume::new(Vec3::ZERO, Vec3::new(2.0, 1.0, 1.0), settings).unwrap()
+    }
+
+    #[test]
+    fn busy_leaves_split_within_the_budget_and_children_inherit_q() {
+        let mut guide = volume(200 << 10);
+        let leaves = guide.leaf_count();
+        let hot = Vec3::new(0.3, 0.3, 0.3);
+        let region = guide.locate(hot, Vec3::Y).unwrap();
+        let mut rng = Pcg32::new(2, 2);
+        for round in 0..12 {
+            for _ in 0..20_000 {
+                let region =
+                    guide.locate(hot + 0.05 * (rng.next_vec2().extend(rng.next_f32()) - 0.5), Vec3::Y).unwrap();
+                let d = guide.sample(region, rng.next_vec2()).direction;
+                guide.update(region, d, 1.0 + d.x.max(0.0));
+            }
+            guide.rebuild_sampling();
+            assert!(guide.memory_bytes() <= 200 << 10, "round {round}: {} bytes", guide.memory_bytes());
+            assert!(guide.validate().is_ok());
+        }
+        assert!(guide.leaf_count() > leaves, "no leaf split");
+        // The busy corner is now covered by a smaller leaf than the one it started in,
+        // whose table still knows what its ancestors learned.
+        let child = guide.locate(hot, Vec3::Y).unwrap();
+        assert!(child.leaf != region.leaf || guide.node_count() > leaves);
+        let x = guide.settings().layout.patch_of(Vec3::new(0.9, 0.3, 0.3)).unwrap();
+        assert!(guide.q(child.leaf, x) > 1.5, "{}", guide.q(child.leaf, x));
+        // A far corner nobody visited kept one leaf.
+        let far = guide.locate(Vec3::new(1.9, 0.9, 0.9), Vec3::Y).unwrap();
+        assert_eq!(guide.q(far.leaf, x), guide.settings().initial_q);
+    }
+
+    #[test]
+    fn folding_keeps_the_pdf_exact_on_the_normals_side() {
+        let mut guide = volume(64 << 10);
+        let normal = Vec3::new(0.3, 0.8, -0.52).normalize();
+        let region = guide.locate(Vec3::splat(0.5), normal).unwrap();
+        let mut rng = Pcg32::new(5, 5);
+        let values: Vec<f32> = (0..guide.patch_count()).map(|_| rng.next_f32() * 3.0).collect();
+        guide.set_q_values(region.leaf, &values);
+        guide.rebuild_sampling();
+        let distribution = guide.distribution(region);
+        let total = pdf_integral(&|d| distribution.pdf(d), normal, 64, 6);
+        assert!((total - 1.0).abs() < 1e-3, "∫ = {total}");
+        let report = chi_square_test(&distribution, normal, &ChiSquareSettings::default());
+        assert!(report.passes(0.01), "{report:?}");
+        assert_eq!(distribution.pdf(-normal), 0.0);
+    }
+
+    #[test]
+    fn the_lambertian_estimate_sees_only_the_upper_hemisphere() {
+        let mut guide = volume(64 << 10);
+        let region = guide.locate(Vec3::splat(0.5), Vec3::Z).unwrap();
+        // Q = 1 above the xy plane, 100 below: a Lambertian at +z sees ≈ albedo·1.
+        let layout = guide.settings().layout;
+        let values: Vec<f32> = (0..guide.patch_count())
+            .map(|k| if layout.direction_in_patch(k, Vec2::splat(0.5)).z > 0.0 { 1.0 } else { 100.0 })
+            .collect();
+        guide.set_q_values(region.leaf, &values);
+        let bsdf = crate::scattering::Lambertian { normal: Vec3::Z, albedo: 0.5 };
+        let estimate = guide.estimate_integral(region, Vec3::Z, &bsdf, Vec2::splat(0.5));
+        assert!((estimate - 0.5).abs() < 0.02, "{estimate}");
+    }
+}

@@ -1,0 +1,12 @@
+//! Q in an irradiance volume (feature `volume`): full-sphere tables of equal-area patches
+//! at the leaves of an octree over the scene, found by position, split where updates
+//! concentrate until the byte budget is spent.
+
+mod guide;
+mod serialize;
+mod settings;
+mod sphere_layout;
+
+pub use guide::{IrradianceVolume, VolumeDistribution, VolumeRegion};
+pub use settings::IrradianceVolumeSettings;
+pub use sphere_layout::SphereLayout;
