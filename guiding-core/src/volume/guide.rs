@@ -15,6 +15,7 @@ use crate::guide::{Guide, GuideStats};
 use crate::scattering::ScatteringFunction;
 use crate::update_rule::{blend, classify_target, IntegralEstimator, UpdateOutcome};
 
+use super::irradiance_sh;
 use super::settings::{IrradianceVolumeSettings, BYTES_PER_NODE};
 use super::sphere_layout::SphereLayout;
 
@@ -75,7 +76,12 @@ pub struct IrradianceVolume {
     /// Leaf visits when its CDF was last built (unchanged leaves are not rebuilt).
     visits_at_build: Vec<u32>,
     cdf: Vec<f32>,
+    /// Per leaf, its Q at the last CDF build projected on order-2 spherical harmonics:
+    /// the Lambertian integral estimate for any normal in nine terms.
+    irradiance: Vec<[f32; 9]>,
     patch_centers: Vec<Vec3>,
+    /// ∫ Y_lm dω over each patch, shared by every leaf's projection.
+    patch_basis: Vec<[f32; 9]>,
     epoch: u32,
     rejected_non_finite: AtomicUsize,
     rejected_negative: AtomicUsize,
@@ -137,6 +143,7 @@ pub(crate) struct VolumeState {
     pub(crate) patch_visits: Vec<u32>,
     pub(crate) leaf_visits: Vec<u32>,
     pub(crate) cdf: Vec<f32>,
+    pub(crate) irradiance: Vec<[f32; 9]>,
     pub(crate) epoch: u32,
     pub(crate) rejected_non_finite: usize,
     pub(crate) rejected_negative: usize,
@@ -155,6 +162,7 @@ impl IrradianceVolume {
             patch_visits: alloc::vec![0; leaves * patches],
             leaf_visits: alloc::vec![0; leaves],
             cdf: alloc::vec![0.0; leaves * patches],
+            irradiance: alloc::vec![[0.0; 9]; leaves],
             epoch: 0,
             rejected_non_finite: 0,
             rejected_negative: 0,
@@ -168,13 +176,14 @@ impl IrradianceVolume {
     /// nothing).
     pub(crate) fn grid_for(low: Vec3, high: Vec3, settings: &IrradianceVolumeSettings) -> Result<CellGrid, Error> {
         settings.validate()?;
-        let initial = (settings.budget_bytes as f64 * settings.initial_share as f64) as usize;
+        let tables = settings.budget_bytes.saturating_sub(settings.shared_bytes());
+        let initial = (tables as f64 * settings.initial_share as f64) as usize;
         let per_cell = settings.bytes_per_leaf() + BYTES_PER_NODE;
         // A grid given by hand must fit the whole budget; one sized here, its share.
-        let budget = if settings.resolution.is_some() { settings.budget_bytes } else { initial.max(per_cell) };
+        let budget = if settings.resolution.is_some() { tables } else { initial.max(per_cell) };
         let grid = CellGrid::new(low, high, settings.resolution, budget, per_cell)?;
-        if grid.cell_count() * per_cell > settings.budget_bytes {
-            let needed_bytes = grid.cell_count() * per_cell;
+        if grid.cell_count() * per_cell + settings.shared_bytes() > settings.budget_bytes {
+            let needed_bytes = grid.cell_count() * per_cell + settings.shared_bytes();
             return Err(Error::BudgetTooSmall { budget_bytes: settings.budget_bytes, needed_bytes });
         }
         Ok(grid)
@@ -201,7 +210,9 @@ impl IrradianceVolume {
             visits_at_build: state.leaf_visits.clone(),
             leaf_visits: atomics(&state.leaf_visits),
             cdf: state.cdf,
+            irradiance: state.irradiance,
             patch_centers: (0..layout.patch_count()).map(|k| layout.direction_in_patch(k, Vec2::splat(0.5))).collect(),
+            patch_basis: irradiance_sh::patch_basis_integrals(&layout),
             epoch: state.epoch,
             rejected_non_finite: AtomicUsize::new(state.rejected_non_finite),
             rejected_negative: AtomicUsize::new(state.rejected_negative),
@@ -261,9 +272,11 @@ impl IrradianceVolume {
         self.visits_at_build[leaf as usize] = u32::MAX;
     }
 
-    /// Bytes held by the tables and the tree.
+    /// Bytes held by the tables, the tree and the per-patch tables all leaves share.
     pub fn memory_bytes(&self) -> usize {
-        self.leaf_count() * self.settings.bytes_per_leaf() + self.nodes.len() * BYTES_PER_NODE
+        self.leaf_count() * self.settings.bytes_per_leaf()
+            + self.nodes.len() * BYTES_PER_NODE
+            + self.settings.shared_bytes()
     }
 
     /// The state, for serialization.
@@ -275,6 +288,7 @@ impl IrradianceVolume {
             patch_visits: load(&self.patch_visits),
             leaf_visits: load(&self.leaf_visits),
             cdf: self.cdf.clone(),
+            irradiance: self.irradiance.clone(),
             epoch: self.epoch,
             rejected_non_finite: self.rejected_non_finite.load(Ordering::Relaxed),
             rejected_negative: self.rejected_negative.load(Ordering::Relaxed),
@@ -298,11 +312,12 @@ impl IrradianceVolume {
     fn build_cdfs(&mut self, all: bool) {
         let patches = self.patch_count();
         let mix = self.settings.uniform_mix;
-        let rows = self.cdf.chunks_exact_mut(patches).zip(self.q.chunks_exact(patches));
-        for ((cdf, q), (visits, built)) in rows.zip(self.leaf_visits.iter().zip(&mut self.visits_at_build)) {
+        let rows = self.cdf.chunks_exact_mut(patches).zip(self.q.chunks_exact(patches)).zip(&mut self.irradiance);
+        for (((cdf, q), sh), (visits, built)) in rows.zip(self.leaf_visits.iter().zip(&mut self.visits_at_build)) {
             let visits = visits.load(Ordering::Relaxed);
             if all || visits != *built {
                 build_cdf(cdf, mix, |k| atomic_f32::load(&q[k]));
+                *sh = irradiance_sh::project(q.iter().map(atomic_f32::load), &self.patch_basis);
                 *built = visits;
             }
         }
@@ -339,6 +354,7 @@ impl IrradianceVolume {
         self.cdf.reserve_exact(new_leaves * patches);
         self.leaf_visits.reserve_exact(new_leaves);
         self.visits_at_build.reserve_exact(new_leaves);
+        self.irradiance.reserve_exact(new_leaves);
         for &(_, node) in &busy {
             let parent = self.nodes[node as usize] & !LEAF;
             let first_child = self.nodes.len() as u32;
@@ -362,6 +378,7 @@ impl IrradianceVolume {
                 }
                 self.leaf_visits.push(AtomicU32::new(leaf_visits));
                 self.visits_at_build.push(u32::MAX);
+                self.irradiance.push(self.irradiance[parent as usize]);
             }
             self.visits_at_build[parent as usize] = u32::MAX;
         }
@@ -412,10 +429,11 @@ impl Guide for IrradianceVolume {
         UpdateOutcome::Accepted
     }
 
-    /// Sums over the leaf's patches: Q_j·fs(ω_j)·cos θ_j·ΔΩ at patch centres
-    /// (`BsdfWeightedSum`; a Lambertian BSDF uses the region's normal), at one jittered
-    /// direction per patch (`StratifiedPatches`), or π·max_j of the centre terms
-    /// (`MaxEntry`).
+    /// `BsdfWeightedSum`: for a Lambertian BSDF, albedo × the leaf's spherical-harmonic
+    /// cosine integral about the region's normal (Q as of the last rebuild; nine terms),
+    /// otherwise Σ_j Q_j·fs(ω_j)·cos θ_j·ΔΩ at patch centres. `StratifiedPatches`: the
+    /// same sum at one jittered direction per patch. `MaxEntry`: π·max_j of the centre
+    /// terms.
     fn estimate_integral<S: ScatteringFunction + ?Sized>(
         &self,
         region: VolumeRegion,
@@ -432,6 +450,10 @@ impl Guide for IrradianceVolume {
         };
         let terms = (0..patches).map(|k| atomic_f32::load(&q[k]) as f64);
         let estimate = match self.settings.update_rule.integral {
+            IntegralEstimator::BsdfWeightedSum if bsdf.lambertian_albedo().is_some() => {
+                let albedo = bsdf.lambertian_albedo().unwrap_or(0.0) as f64;
+                albedo * irradiance_sh::cosine_integral(&self.irradiance[region.leaf as usize], region.normal) as f64
+            }
             IntegralEstimator::BsdfWeightedSum => {
                 solid_angle * terms.enumerate().map(|(k, q)| q * at_center(k) as f64).sum::<f64>()
             }
@@ -556,6 +578,7 @@ mod tests {
             .map(|k| if layout.direction_in_patch(k, Vec2::splat(0.5)).z > 0.0 { 1.0 } else { 100.0 })
             .collect();
         guide.set_q_values(region.leaf, &values);
+        guide.rebuild_sampling();
         let bsdf = crate::scattering::Lambertian { normal: Vec3::Z, albedo: 0.5 };
         let estimate = guide.estimate_integral(region, Vec3::Z, &bsdf, Vec2::splat(0.5));
         assert!((estimate - 0.5).abs() < 0.02, "{estimate}");

@@ -3,6 +3,7 @@
 //! concentrate until the byte budget is spent.
 
 mod guide;
+mod irradiance_sh;
 mod serialize;
 mod settings;
 mod sphere_layout;

@@ -10,6 +10,7 @@
 //!           · u64 rejected non-finite · u64 rejected negative · u32 node count M
 //!           · u32 leaf count L · M u32 nodes (bit 31: leaf, else first child)
 //!           · L u32 leaf visits · L·N f32 Q · L·N u32 patch visits · L·N f32 CDF
+//!           · L×9 f32 spherical-harmonic coefficients
 //! u64 FNV-1a checksum of everything before it
 //! ```
 
@@ -54,6 +55,7 @@ pub(crate) fn encode(volume: &IrradianceVolume) -> Vec<u8> {
     state.q.iter().for_each(|&q| w.put_f32(q));
     state.patch_visits.iter().for_each(|&v| w.put_u32(v));
     state.cdf.iter().for_each(|&c| w.put_f32(c));
+    state.irradiance.iter().flatten().for_each(|&c| w.put_f32(c));
     w.finish_with_checksum()
 }
 
@@ -162,7 +164,7 @@ pub(crate) fn decode(bytes: &[u8]) -> Result<IrradianceVolume, Error> {
     // Check the length before allocating, so a damaged count cannot demand memory.
     let needed = node_count
         .checked_add(leaf_count)
-        .and_then(|words| leaf_count.checked_mul(3 * patches).and_then(|table| table.checked_add(words)))
+        .and_then(|words| leaf_count.checked_mul(3 * patches + 9).and_then(|table| table.checked_add(words)))
         .and_then(|words| words.checked_mul(4))
         .ok_or_else(|| invalid_field("node_count", 0, "addressable"))?;
     if r.remaining() != needed {
@@ -183,13 +185,28 @@ pub(crate) fn decode(bytes: &[u8]) -> Result<IrradianceVolume, Error> {
     let patch_visits = read_u32s(&mut r, leaf_count * patches)?;
     let cdf = read_f32s(&mut r, leaf_count * patches)?;
     check_cdfs(&cdf, patches)?;
+    let coefficients = read_f32s(&mut r, leaf_count * 9)?;
+    if let Some(i) = coefficients.iter().position(|c| !c.is_finite()) {
+        return Err(invalid_field("irradiance", i, "finite"));
+    }
+    let irradiance = coefficients.chunks_exact(9).map(|c| core::array::from_fn(|i| c[i])).collect();
     r.finish()?;
     let volume = IrradianceVolume::assemble(
         low,
         high,
         settings,
         grid,
-        VolumeState { nodes, q, patch_visits, leaf_visits, cdf, epoch, rejected_non_finite, rejected_negative },
+        VolumeState {
+            nodes,
+            q,
+            patch_visits,
+            leaf_visits,
+            cdf,
+            irradiance,
+            epoch,
+            rejected_non_finite,
+            rejected_negative,
+        },
     );
     if volume.memory_bytes() > settings.budget_bytes {
         return Err(invalid_field("node_count", 0, "a tree within the byte budget"));

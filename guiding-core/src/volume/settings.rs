@@ -71,9 +71,15 @@ impl IrradianceVolumeSettings {
     }
 
     /// Bytes one leaf holds: per patch Q, visit count and CDF (4 bytes each), plus its
-    /// leaf visit count and the count at its last CDF build.
+    /// leaf visit count, the count at its last CDF build and its nine spherical-harmonic
+    /// coefficients.
     pub fn bytes_per_leaf(&self) -> usize {
-        self.layout.patch_count() * 12 + 8
+        self.layout.patch_count() * 12 + 8 + 36
+    }
+
+    /// Bytes shared by all leaves: per patch its centre and its nine basis integrals.
+    pub fn shared_bytes(&self) -> usize {
+        self.layout.patch_count() * (12 + 36)
     }
 }
 
