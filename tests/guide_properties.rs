@@ -9,6 +9,8 @@
 //! - concurrent updates from several threads lose no visit;
 //! - for tables (`table_rule_properties!`): α = 0 keeps Q, α = 1 replaces it,
 //!   α = 1/(1+n) converges to the targets' mean, and concurrent updates tear no value;
+//! - memory stays within the byte budget while the guide learns (and splits, where it
+//!   adapts);
 //! - serialization round-trips exactly; truncated, bit-flipped or re-sealed damaged
 //!   buffers give an error or a valid guide, never a panic.
 
@@ -230,6 +232,29 @@ fn check_no_torn_values<G: TableAccess>(make: &impl Fn(UpdateRule) -> G) {
     }
 }
 
+/// Builds the guide at several budgets and teaches it pass after pass around one busy
+/// corner of the box (where adaptive structures split): its memory never exceeds the
+/// budget.
+fn check_memory_within_budget<G: GuideAccess>() {
+    for budget in [48 << 10, 200 << 10, 1 << 20, 2 << 20] {
+        let mut guide = G::with_budget(budget);
+        let mut rng = Pcg32::new(budget as u64, 3);
+        for pass in 0..10 {
+            for _ in 0..30_000 {
+                let corner = Vec3::new(-0.8, -1.0, -0.8) + 0.4 * Vec3::new(rng.next_f32(), 0.0, rng.next_f32());
+                let Some(region) = guide.locate(corner, Vec3::Y) else { continue };
+                let sample = guide.sample(region, rng.next_vec2());
+                let target = 0.1 + 10.0 * sample.direction.x.max(0.0);
+                guide.update_sampled(region, sample.direction, target, sample.pdf);
+            }
+            guide.rebuild_sampling();
+            let bytes = guide.stats().memory_bytes;
+            assert!(bytes <= budget, "budget {budget}, pass {pass}: {bytes} bytes");
+            assert!(guide.validate().is_ok());
+        }
+    }
+}
+
 fn check_round_trip<G: GuideAccess>(make: &impl Fn(UpdateRule) -> G) {
     for (name, guide) in table_cases(make) {
         let bytes = guide.to_bytes();
@@ -309,6 +334,11 @@ macro_rules! guide_properties {
             #[test]
             fn serialization_round_trips_exactly() {
                 check_round_trip(&make);
+            }
+
+            #[test]
+            fn memory_stays_within_the_budget() {
+                check_memory_within_budget::<$guide>();
             }
 
             proptest! {

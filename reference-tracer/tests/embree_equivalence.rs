@@ -110,7 +110,7 @@ fn cornell_renders_the_same_with_either_intersector() {
         let (_, statistics) = reference_tracer::render::render(
             &prepared.scene,
             &prepared.intersector,
-            reference_tracer::render::Learners::default(),
+            reference_tracer::render::Learners::<guiding_core::HemisphereGrid>::default(),
             &settings,
             |_| {},
         );

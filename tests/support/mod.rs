@@ -53,6 +53,9 @@ pub trait GuideAccess: Guide {
             .map(|(p, n)| (self.locate(p, n).expect("the test points carry regions"), n))
             .collect()
     }
+    /// The guide over [`box_walls`] sized by a byte budget alone (every other setting
+    /// its default), for the memory checks.
+    fn with_budget(budget_bytes: usize) -> Self;
     /// Entries per region.
     fn entry_count(&self) -> usize;
     /// Overwrites a region's entries (one non-negative value per entry: Q of a patch,
@@ -102,6 +105,11 @@ impl GuideAccess for HemisphereGrid {
         box_test_points()
     }
 
+    fn with_budget(budget_bytes: usize) -> Self {
+        HemisphereGrid::build(&box_walls(), HemisphereGridSettings { budget_bytes, ..Default::default() })
+            .expect("grid over the box")
+    }
+
     fn entry_count(&self) -> usize {
         self.patch_count()
     }
@@ -142,6 +150,11 @@ pub fn irradiance_volume(rule: UpdateRule) -> IrradianceVolume {
 impl GuideAccess for IrradianceVolume {
     fn test_points(&self) -> Vec<(Vec3, Vec3)> {
         box_test_points()
+    }
+
+    fn with_budget(budget_bytes: usize) -> Self {
+        let settings = IrradianceVolumeSettings { budget_bytes, ..Default::default() };
+        IrradianceVolume::new(Vec3::NEG_ONE, Vec3::ONE, settings).expect("volume over the box")
     }
 
     fn entry_count(&self) -> usize {
@@ -192,6 +205,11 @@ const ENTRY_LOBE_CONCENTRATIONS: [f32; 8] = [0.5, 4.0, 15.0, 60.0, 250.0, 2.0, 3
 impl GuideAccess for GaussianMixture {
     fn test_points(&self) -> Vec<(Vec3, Vec3)> {
         box_test_points()
+    }
+
+    fn with_budget(budget_bytes: usize) -> Self {
+        let settings = GaussianMixtureSettings { budget_bytes, ..Default::default() };
+        GaussianMixture::new(Vec3::NEG_ONE, Vec3::ONE, settings).expect("mixture over the box")
     }
 
     fn entry_count(&self) -> usize {
