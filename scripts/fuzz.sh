@@ -11,12 +11,12 @@ cd "$(dirname "$0")/.."
 seconds=${1:-30}
 shift || true
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(scene_json mesh guide_bytes update_stream capi_calls)
+[ ${#targets[@]} -gt 0 ] || targets=(scene_json mesh guide_bytes update_stream capi_calls foreign_scene)
 
 command -v cargo-fuzz >/dev/null 2>&1 || cargo install cargo-fuzz --locked --version 0.13.2
 
 seed_corpora() {
-    mkdir -p fuzz/corpus/{scene_json,mesh,guide_bytes,update_stream,capi_calls}
+    mkdir -p fuzz/corpus/{scene_json,mesh,guide_bytes,update_stream,capi_calls,foreign_scene}
     for scene in scenes/*/scene.json; do
         cp "$scene" "fuzz/corpus/scene_json/$(basename "$(dirname "$scene")").json"
     done
@@ -34,6 +34,26 @@ seed_corpora() {
         printf '\000\000\000\000\000\000\200\077\000\000\000\000'  # (0, 1, 0)
         printf '\004\000\000\000\000\001\000\000\000\002\000\000\000\003\000\000\000'
     } > fuzz/corpus/mesh/quad-binary.ply
+    # Foreign scenes: a selector byte (even: pbrt, odd: Mitsuba), then the file; small
+    # ones whose meshes resolve beside the original Cornell box, and the real ones.
+    { printf '\000'; cat scenes/veach-ajar/scene.pbrt; } > fuzz/corpus/foreign_scene/veach-ajar.pbrt
+    for xml in scenes/*/scene.xml; do
+        { printf '\001'; cat "$xml"; } > "fuzz/corpus/foreign_scene/$(basename "$(dirname "$xml")").xml"
+    done
+    {
+        printf '\000'
+        printf 'LookAt 0 1 4 0 1 0 0 1 0\nCamera "perspective" "float fov" 40\nFilm "image" "integer xresolution" 8 "integer yresolution" 8\n'
+        printf 'WorldBegin\nTexture "t" "spectrum" "checkerboard" "float uscale" 4 "rgb tex1" [0.2 0.2 0.2]\n'
+        printf 'MakeNamedMaterial "m" "string type" "matte" "texture Kd" "t"\nNamedMaterial "m"\n'
+        printf 'AttributeBegin\nAreaLightSource "diffuse" "rgb L" [4 4 4]\nTranslate 0 1 0\n'
+        printf 'Shape "trianglemesh" "integer indices" [0 1 2] "point P" [0 0 0 1 0 0 0 0 1] "normal N" [0 -1 0 0 -1 0 0 -1 0]\nAttributeEnd\nWorldEnd\n'
+    } > fuzz/corpus/foreign_scene/small.pbrt
+    {
+        printf '\001<scene version="0.5.0"><sensor type="perspective"><float name="fov" value="45"/>'
+        printf '<transform name="toWorld"><lookat origin="0, 1, 4" target="0, 1, 0" up="0, 1, 0"/></transform></sensor>'
+        printf '<shape type="obj"><string name="filename" value="CornellBox-Original.obj"/></shape>'
+        printf '<shape type="rectangle"><emitter type="area"><rgb name="radiance" value="1, 1, 1"/></emitter></shape></scene>'
+    } > fuzz/corpus/foreign_scene/small.xml
 }
 
 seed_corpora

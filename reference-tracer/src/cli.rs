@@ -40,11 +40,31 @@ enum Command {
     /// Run several methods on one scene for the same wall time each; writes
     /// DIR/compare.csv, DIR/compare.md, DIR/error.svg and every method's image.
     Compare(CompareArgs),
+    /// Read a pbrt-v3 (.pbrt) or Mitsuba (.xml) scene and write it in the project's
+    /// JSON format (file names made relative to the output's folder).
+    Convert(ConvertArgs),
+}
+
+#[derive(Debug, Args)]
+struct ConvertArgs {
+    /// The scene to read (.pbrt or .xml).
+    input: PathBuf,
+    /// The JSON scene to write.
+    output: PathBuf,
+}
+
+fn run_convert(args: &ConvertArgs) -> Result<(), String> {
+    let warnings = crate::import::convert(&args.input, &args.output).map_err(|e| e.to_string())?;
+    for warning in &warnings {
+        eprintln!("warning: {warning}");
+    }
+    eprintln!("wrote {}", args.output.display());
+    Ok(())
 }
 
 #[derive(Debug, Args)]
 struct CompareArgs {
-    /// The scene file (scene.json).
+    /// The scene file: scene.json, or a pbrt-v3 (.pbrt) or Mitsuba (.xml) scene.
     scene: PathBuf,
     /// Comma-separated methods, e.g. pt,nee,guided,guided-nee; a method may name its
     /// light selection, e.g. nee:uniform,nee:power,nee:learned (else --light-selection),
@@ -70,7 +90,7 @@ struct CompareArgs {
 
 #[derive(Debug, Args)]
 struct RenderArgs {
-    /// The scene file (scene.json).
+    /// The scene file: scene.json, or a pbrt-v3 (.pbrt) or Mitsuba (.xml) scene.
     scene: PathBuf,
     /// pt, nee, guided or guided-nee.
     #[arg(long, default_value = "nee", value_parser = parse_method)]
@@ -96,7 +116,7 @@ struct RenderArgs {
 
 #[derive(Debug, Args)]
 struct ReferenceArgs {
-    /// The scene file (scene.json).
+    /// The scene file: scene.json, or a pbrt-v3 (.pbrt) or Mitsuba (.xml) scene.
     scene: PathBuf,
     /// Samples per pixel.
     #[arg(long)]
@@ -122,6 +142,26 @@ struct ReferenceArgs {
     /// Worker threads (default: all cores).
     #[arg(long)]
     threads: Option<usize>,
+    /// Image size W×H instead of the scene's (same vertical field of view).
+    #[arg(long, value_parser = parse_resolution)]
+    resolution: Option<[u32; 2]>,
+}
+
+/// `--resolution`: W×H within the largest image side.
+fn parse_resolution(s: &str) -> Result<[u32; 2], String> {
+    let [width, height] = parse_patches(s)?;
+    let limit = crate::scene::MAX_IMAGE_SIDE;
+    if width == 0 || height == 0 || width > limit || height > limit {
+        return Err(format!("`{s}`: each side must be in 1..={limit}"));
+    }
+    Ok([width, height])
+}
+
+/// Renders `prepared` at `resolution` when one is given.
+fn resize(prepared: &mut Prepared, resolution: Option<[u32; 2]>) {
+    if let Some([width, height]) = resolution {
+        prepared.scene.camera = prepared.scene.camera.with_resolution(width, height);
+    }
 }
 
 /// Options shared by every command that traces paths.
@@ -138,6 +178,9 @@ pub struct TraceOptions {
     /// (against 3 and 6, 15 s each: fewer lobes cost less per sample).
     #[arg(long, default_value_t = 2)]
     mixture_lobes: usize,
+    /// Image size W×H instead of the scene's (same vertical field of view), e.g. 320x180.
+    #[arg(long, value_parser = parse_resolution)]
+    resolution: Option<[u32; 2]>,
     /// Random seed.
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -856,6 +899,7 @@ fn run_render(args: &RenderArgs) -> Result<(), String> {
     let pool = thread_pool(options.threads)?;
     let mut prepared =
         prepare_with_lights(&args.scene, options.intersector, guide, options.light_request(args.integrator)?)?;
+    resize(&mut prepared, options.resolution);
     for warning in &prepared.scene.warnings {
         eprintln!("warning: {}: {warning}", args.scene.display());
     }
@@ -911,6 +955,7 @@ fn run_reference(args: &ReferenceArgs) -> Result<(), String> {
     let guide = args.integrator.uses_guide().then(|| HemisphereGridSettings::default().into());
     let lights = LightRequest::new(Some(args.light_selection), Some(args.env_sampling), args.integrator.uses_nee());
     let mut prepared = prepare_with_lights(&args.scene, IntersectorChoice::default(), guide, lights)?;
+    resize(&mut prepared, args.resolution);
     let integrator = IntegratorSettings {
         method: args.integrator,
         light_selection: args.light_selection,
@@ -962,6 +1007,7 @@ fn run_compare(args: &CompareArgs) -> Result<(), String> {
             options.directional_guide(method, run.guide)?,
             options.light_request(method)?,
         )?;
+        resize(&mut prepared, options.resolution);
         eprintln!("{name}: plan: {}", prepared.plan.describe());
         let camera = &prepared.scene.camera;
         if (reference.width, reference.height) != (camera.width as usize, camera.height as usize) {
@@ -1041,6 +1087,7 @@ impl Cli {
             Command::Render(args) => run_render(args),
             Command::Reference(args) => run_reference(args),
             Command::Compare(args) => run_compare(args),
+            Command::Convert(args) => run_convert(args),
         }
     }
 }

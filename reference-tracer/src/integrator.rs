@@ -7,7 +7,8 @@
 use glam::{Vec2, Vec3};
 use guiding_core::environment::{EnvCell, EnvSample};
 use guiding_core::{
-    DirectionalDistribution, EnvTileGuide, Guide, Intersector, Lambertian, LightGuide, Pcg32, Ray, ScatteringFunction,
+    DirectionalDistribution, EnvTileGuide, Guide, Hit, Intersector, Lambertian, LightGuide, Pcg32, Ray,
+    ScatteringFunction,
 };
 
 use crate::color::luminance;
@@ -294,7 +295,12 @@ pub struct PathTracer<'a, I: Intersector, G: Guide> {
     settings: IntegratorSettings,
     ray_epsilon: f32,
     environment_choice: f32,
+    /// Whether some material has an opacity texture: rays then pass through it.
+    masks: bool,
 }
+
+/// Most masked surfaces a ray passes through before it counts as blocked.
+const MAX_MASK_CROSSINGS: u32 = 64;
 
 impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
     /// A tracer; `guide` is used by the guided methods only, `light_guide` when lights
@@ -319,7 +325,18 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         let light_guide = light_guide.filter(|_| settings.light_selection == LightSelection::Learned);
         let environment_guide =
             environment_guide.filter(|_| settings.environment_sampling == EnvironmentSampling::Tiles);
-        Self { scene, intersector, guide, light_guide, environment_guide, settings, ray_epsilon, environment_choice }
+        let masks = scene.has_masks();
+        Self {
+            scene,
+            intersector,
+            guide,
+            light_guide,
+            environment_guide,
+            settings,
+            ray_epsilon,
+            environment_choice,
+            masks,
+        }
     }
 
     /// Offset of a ray leaving `point` on the side of `normal` that `direction` points to:
@@ -333,6 +350,47 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
     /// the scene-relative epsilon plus a few f32 steps of the coordinates there.
     fn epsilon_at(&self, point: Vec3) -> f32 {
         self.ray_epsilon + 1e-6 * point.abs().max_element()
+    }
+
+    /// The closest surface along `ray` that the ray stops at, with its textured material:
+    /// a masked surface lets the ray pass with probability 1 − opacity (its hit is
+    /// skipped and tracing goes on beyond it).
+    fn next_surface(&self, mut ray: Ray, rng: &mut Pcg32, counters: &mut PathCounters) -> Option<(Hit, Material)> {
+        for _ in 0..MAX_MASK_CROSSINGS {
+            let hit = self.intersector.intersect(&ray)?;
+            let (material, opacity) = self.scene.material_at(hit.primitive, hit.barycentrics);
+            if opacity >= 1.0 || rng.next_f32() < opacity {
+                return Some((hit, material));
+            }
+            let point = self.scene.triangles[hit.primitive as usize].point(hit.barycentrics);
+            let normal = self.scene.normals[hit.primitive as usize];
+            ray = Ray { origin: self.spawn(point, normal, ray.direction), t_max: ray.t_max - hit.t, ..ray };
+            counters.rays += 1;
+        }
+        None
+    }
+
+    /// The share of light that passes along the segment `ray`: 0 when something opaque
+    /// blocks it, else the product of (1 − opacity) of the masked surfaces it crosses.
+    fn transmittance(&self, mut ray: Ray, counters: &mut PathCounters) -> f32 {
+        if !self.masks {
+            return if self.intersector.occluded(&ray) { 0.0 } else { 1.0 };
+        }
+        let mut transmittance = 1.0;
+        for _ in 0..MAX_MASK_CROSSINGS {
+            let Some(hit) = self.intersector.intersect(&ray) else { return transmittance };
+            let (_, opacity) = self.scene.material_at(hit.primitive, hit.barycentrics);
+            transmittance *= 1.0 - opacity;
+            if transmittance <= 0.0 {
+                return 0.0;
+            }
+            let point = self.scene.triangles[hit.primitive as usize].point(hit.barycentrics);
+            let normal = self.scene.normals[hit.primitive as usize];
+            let origin = self.spawn(point, normal, ray.direction);
+            ray = Ray { origin, t_max: ray.t_max - (origin - ray.origin).length(), ..ray };
+            counters.rays += 1;
+        }
+        0.0
     }
 
     /// Density with which next-event estimation produces direction `wi` towards an
@@ -403,7 +461,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         counters.paths += 1;
         for depth in 0..settings.max_depth {
             counters.rays += 1;
-            let Some(hit) = self.intersector.intersect(&ray) else {
+            let Some((hit, material)) = self.next_surface(ray, rng, counters) else {
                 if let Some(environment) = &self.scene.environment {
                     let emitted = environment.radiance(ray.direction);
                     let weight = match previous {
@@ -421,8 +479,8 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                 break;
             };
             counters.vertices += 1;
+            let material = &material;
             let triangle = &self.scene.triangles[hit.primitive as usize];
-            let material = self.scene.material(hit.primitive);
             let point = triangle.point(hit.barycentrics);
             let geometric_normal = self.scene.normals[hit.primitive as usize];
             let wo = -ray.direction;
@@ -440,7 +498,8 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                     last.arriving += weight * luminance(material.emission);
                 }
             }
-            let shading = material.shading_frame(geometric_normal, wo);
+            let shading_normal = self.scene.shading_normal(hit.primitive, hit.barycentrics);
+            let shading = material.shading_frame(geometric_normal, shading_normal, wo);
             let normal = shading.frame.normal;
             let delta = material.is_delta();
             let region = match self.guide {
@@ -646,19 +705,20 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             f32::INFINITY
         };
         counters.rays += 1;
-        let occluded = self.intersector.occluded(&Ray::segment(origin, wi, 0.0, t_max));
+        let transmittance = self.transmittance(Ray::segment(origin, wi, 0.0, t_max), counters);
+        let occluded = transmittance <= 0.0;
         if let Some((light, point_pdf)) = chosen {
             // Eq. (3)'s ‖C‖∞: the unshadowed contribution of the whole light.
             self.learn_light(point, light, (f * emitted / point_pdf).max_element(), !occluded);
         }
         if let Some((cell, sample)) = tile {
-            self.learn_environment(cell, &sample, if occluded { Vec3::ZERO } else { f });
+            self.learn_environment(cell, &sample, f * transmittance);
         }
         if occluded {
             return Vec3::ZERO;
         }
         let weight = power_heuristic(light_pdf, self.scatter_pdf(material, shading, wo, wi, distribution, clock));
-        f * emitted * (weight / light_pdf)
+        f * emitted * (weight * transmittance / light_pdf)
     }
 
     /// Teaches the light guide (if lights are selected as learned) one shadow ray.

@@ -56,8 +56,8 @@ fn unknown_keys_name_their_path() {
     assert_mentions(&text, &["materials.white", "albdo"]);
     let text = error_of("unknown-top", |j| j["lights"] = json!([]));
     assert_mentions(&text, &["lights"]);
-    let text = error_of("unknown-type", |j| j["materials"]["white"]["type"] = json!("plastic"));
-    assert_mentions(&text, &["materials.white", "plastic"]);
+    let text = error_of("unknown-type", |j| j["materials"]["white"]["type"] = json!("velvet"));
+    assert_mentions(&text, &["materials.white", "velvet"]);
 }
 
 #[test]

@@ -4,9 +4,17 @@
 mod conductor;
 mod dielectric;
 mod diffuse;
+pub mod fresnel;
+mod microfacet;
+mod plastic;
 
 use glam::{Vec2, Vec3};
 use guiding_core::Frame;
+
+pub use fresnel::ComplexIor;
+pub use plastic::{Plastic, MIN_COAT_ALPHA};
+
+use crate::texture::Texture;
 
 /// How a surface scatters.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -16,27 +24,43 @@ pub enum Surface {
         /// Reflectance in \[0, 1\]³.
         albedo: Vec3,
     },
-    /// GGX microfacet reflection with Smith shadowing, no Fresnel.
+    /// GGX microfacet reflection with Smith shadowing; Fresnel from a complex index of
+    /// refraction when one is given.
     Conductor {
         /// Reflectance scale in \[0, 1\]³.
         specular: Vec3,
         /// GGX roughness α; 0 is a perfect mirror.
         alpha: f32,
+        /// The conductor's index of refraction; `None` for no Fresnel term.
+        ior: Option<ComplexIor>,
     },
     /// Smooth glass: exact Fresnel reflection and refraction.
     Dielectric {
         /// Index of refraction inside relative to outside (the side the normal points to).
         ior: f32,
     },
+    /// A thin glass sheet: Fresnel reflection, the rest passing straight through.
+    ThinDielectric {
+        /// Index of refraction of the sheet relative to the outside.
+        ior: f32,
+    },
+    /// A diffuse base under a rough dielectric coat.
+    Plastic(Plastic),
 }
 
-/// A surface and the radiance its front face emits.
+/// A surface, the radiance its front face emits, and the textures that vary it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Material {
-    /// Scattering.
+    /// Scattering (with untextured values).
     pub surface: Surface,
     /// Radiance leaving the front face (W·sr⁻¹·m⁻²); zero for non-emitters.
     pub emission: Vec3,
+    /// Index of the texture that multiplies the albedo (diffuse, plastic) or the
+    /// specular colour (conductor).
+    pub albedo_texture: Option<u32>,
+    /// Index of the texture giving the opacity (a mask): where it is below one, light
+    /// passes through the surface with that probability.
+    pub opacity_texture: Option<u32>,
 }
 
 /// A direction drawn from a BSDF.
@@ -53,21 +77,52 @@ pub struct BsdfSample {
 }
 
 /// Where a BSDF is evaluated: the shading frame (z along the normal used for
-/// scattering) of a surface point.
+/// scattering) of a surface point, and the geometric normal on the viewer's side.
 #[derive(Clone, Copy, Debug)]
 pub struct ShadingFrame {
-    /// Reflective surfaces: the normal turned towards the viewer (two-sided
-    /// reflection). Dielectrics: the geometric normal as wound (outside).
+    /// Reflective surfaces: the shading normal turned towards the viewer (two-sided
+    /// reflection). Dielectrics: the shading normal on the geometric normal's side
+    /// (outside).
     pub frame: Frame,
+    /// Reflective surfaces: the geometric normal on the viewer's side; directions below
+    /// it are not reflected (shading normals would leak light through the surface).
+    /// Dielectrics: the geometric normal as wound.
+    pub geometric: Vec3,
 }
 
 impl Material {
+    /// An untextured material.
+    pub fn new(surface: Surface, emission: Vec3) -> Self {
+        Self { surface, emission, albedo_texture: None, opacity_texture: None }
+    }
+
+    /// This material at a surface point with texture coordinates `uv`: the albedo
+    /// texture applied (the opacity is [`opacity`](Self::opacity)'s business).
+    pub fn at(&self, textures: &[Texture], uv: Vec2) -> Material {
+        let Some(texture) = self.albedo_texture else { return *self };
+        let value = textures[texture as usize].eval(uv).clamp(Vec3::ZERO, Vec3::ONE);
+        let surface = match self.surface {
+            Surface::Diffuse { albedo } => Surface::Diffuse { albedo: albedo * value },
+            Surface::Conductor { specular, alpha, ior } => {
+                Surface::Conductor { specular: specular * value, alpha, ior }
+            }
+            Surface::Plastic(plastic) => Surface::Plastic(Plastic { albedo: plastic.albedo * value, ..plastic }),
+            other => other,
+        };
+        Material { surface, ..*self }
+    }
+
+    /// Opacity in [0, 1] at `uv`: 1 without an opacity texture.
+    pub fn opacity(&self, textures: &[Texture], uv: Vec2) -> f32 {
+        self.opacity_texture.map_or(1.0, |t| textures[t as usize].opacity(uv))
+    }
+
     /// Whether every lobe is a delta: such surfaces are neither guided nor lit by NEE.
     pub fn is_delta(&self) -> bool {
         match self.surface {
-            Surface::Diffuse { .. } => false,
+            Surface::Diffuse { .. } | Surface::Plastic(_) => false,
             Surface::Conductor { alpha, .. } => alpha == 0.0,
-            Surface::Dielectric { .. } => true,
+            Surface::Dielectric { .. } | Surface::ThinDielectric { .. } => true,
         }
     }
 
@@ -76,24 +131,36 @@ impl Material {
         self.emission.max_element() > 0.0
     }
 
-    /// The shading frame at a point with unit geometric normal `geometric_normal`, seen
-    /// from direction `wo` (towards the viewer).
-    pub fn shading_frame(&self, geometric_normal: Vec3, wo: Vec3) -> ShadingFrame {
-        let normal = match self.surface {
-            Surface::Dielectric { .. } => geometric_normal,
-            _ if geometric_normal.dot(wo) < 0.0 => -geometric_normal,
-            _ => geometric_normal,
-        };
-        ShadingFrame { frame: Frame::from_normal(normal) }
+    fn transmits(&self) -> bool {
+        matches!(self.surface, Surface::Dielectric { .. } | Surface::ThinDielectric { .. })
+    }
+
+    /// The shading frame at a point with unit geometric normal `geometric_normal` and
+    /// unit shading normal `shading_normal` (the geometric one where a mesh has none),
+    /// seen from direction `wo` (towards the viewer).
+    pub fn shading_frame(&self, geometric_normal: Vec3, shading_normal: Vec3, wo: Vec3) -> ShadingFrame {
+        let outside = if shading_normal.dot(geometric_normal) < 0.0 { -shading_normal } else { shading_normal };
+        if self.transmits() {
+            return ShadingFrame { frame: Frame::from_normal(outside), geometric: geometric_normal };
+        }
+        let side = if geometric_normal.dot(wo) < 0.0 { -1.0 } else { 1.0 };
+        let (geometric, shading) = (geometric_normal * side, outside * side);
+        // A shading normal that turns away from the viewer would reflect nothing.
+        let normal = if shading.dot(wo) > 0.0 { shading } else { geometric };
+        ShadingFrame { frame: Frame::from_normal(normal), geometric }
     }
 
     /// `f(wo, wi)·|cos θi|` for world directions; zero for delta lobes.
     pub fn eval(&self, shading: &ShadingFrame, wo: Vec3, wi: Vec3) -> Vec3 {
+        if wi.dot(shading.geometric) <= 0.0 {
+            return Vec3::ZERO;
+        }
         let (wo, wi) = (shading.frame.to_local(wo), shading.frame.to_local(wi));
         match self.surface {
             Surface::Diffuse { albedo } => diffuse::eval(albedo, wo, wi),
-            Surface::Conductor { specular, alpha } => conductor::eval(specular, alpha, wo, wi),
-            Surface::Dielectric { .. } => Vec3::ZERO,
+            Surface::Conductor { specular, alpha, ior } => conductor::eval(specular, alpha, ior.as_ref(), wo, wi),
+            Surface::Plastic(plastic) => plastic.eval(wo, wi),
+            Surface::Dielectric { .. } | Surface::ThinDielectric { .. } => Vec3::ZERO,
         }
     }
 
@@ -103,7 +170,8 @@ impl Material {
         match self.surface {
             Surface::Diffuse { .. } => diffuse::pdf(wo, wi),
             Surface::Conductor { alpha, .. } => conductor::pdf(alpha, wo, wi),
-            Surface::Dielectric { .. } => 0.0,
+            Surface::Plastic(plastic) => plastic.pdf(wo, wi),
+            Surface::Dielectric { .. } | Surface::ThinDielectric { .. } => 0.0,
         }
     }
 
@@ -112,9 +180,54 @@ impl Material {
         let wo_local = shading.frame.to_local(wo);
         let sample = match self.surface {
             Surface::Diffuse { albedo } => diffuse::sample(albedo, wo_local, u),
-            Surface::Conductor { specular, alpha } => conductor::sample(specular, alpha, wo_local, u),
+            Surface::Conductor { specular, alpha, ior } => {
+                conductor::sample(specular, alpha, ior.as_ref(), wo_local, u)
+            }
+            Surface::Plastic(plastic) => plastic.sample(wo_local, u, u_lobe),
             Surface::Dielectric { ior } => dielectric::sample(ior, wo_local, u_lobe),
+            Surface::ThinDielectric { ior } => dielectric::sample_thin(ior, wo_local, u_lobe),
         }?;
-        Some(BsdfSample { wi: shading.frame.to_world(sample.wi), ..sample })
+        let wi = shading.frame.to_world(sample.wi);
+        if !self.transmits() && wi.dot(shading.geometric) <= 0.0 {
+            return None;
+        }
+        Some(BsdfSample { wi, ..sample })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shading_normals_never_reflect_through_the_surface() {
+        let material = Material::new(Surface::Diffuse { albedo: Vec3::ONE }, Vec3::ZERO);
+        let geometric = Vec3::Z;
+        let shading = Vec3::new(0.5, 0.0, 0.866).normalize();
+        let wo = Vec3::new(-0.3, 0.0, 0.95).normalize();
+        let frame = material.shading_frame(geometric, shading, wo);
+        // Above the shading hemisphere but below the geometric one: no reflection.
+        let below = Vec3::new(0.95, 0.0, -0.1).normalize();
+        assert!(below.dot(frame.frame.normal) > 0.0);
+        assert_eq!(material.eval(&frame, wo, below), Vec3::ZERO);
+        let mut rng = guiding_core::Pcg32::new(4, 4);
+        for _ in 0..10_000 {
+            if let Some(s) = material.sample(&frame, wo, rng.next_vec2(), rng.next_f32()) {
+                assert!(s.wi.dot(geometric) > 0.0);
+            }
+        }
+        // Seen from below the shading normal's hemisphere, the geometric normal shades.
+        let grazing = Vec3::new(-0.99, 0.0, 0.1).normalize();
+        assert_eq!(material.shading_frame(geometric, shading, grazing).frame.normal, geometric);
+    }
+
+    #[test]
+    fn textures_scale_the_albedo() {
+        let checks = Texture::checkerboard(Vec3::splat(0.5), Vec3::ONE);
+        let mut material = Material::new(Surface::Diffuse { albedo: Vec3::splat(0.8) }, Vec3::ZERO);
+        material.albedo_texture = Some(0);
+        let at = material.at(std::slice::from_ref(&checks), Vec2::new(0.5, 0.5));
+        assert_eq!(at.surface, Surface::Diffuse { albedo: Vec3::splat(0.4) });
+        assert_eq!(material.opacity(&[checks], Vec2::ZERO), 1.0);
     }
 }
