@@ -102,6 +102,7 @@ impl ByteWriter {
             IntegralEstimator::BsdfWeightedSum => 0,
             IntegralEstimator::StratifiedPatches => 1,
             IntegralEstimator::MaxEntry => 2,
+            IntegralEstimator::BsdfSampled => 3,
         });
     }
 
@@ -194,7 +195,8 @@ impl<'a> ByteReader<'a> {
             0 => IntegralEstimator::BsdfWeightedSum,
             1 => IntegralEstimator::StratifiedPatches,
             2 => IntegralEstimator::MaxEntry,
-            _ => return Err(invalid_field("integral", 0, "a kind in 0..=2")),
+            3 => IntegralEstimator::BsdfSampled,
+            _ => return Err(invalid_field("integral", 0, "a kind in 0..=3")),
         };
         Ok(UpdateRule { learning_rate, integral })
     }

@@ -47,7 +47,7 @@ pub use geometry::{square_to_triangle_barycentrics, Hit, Ray, Triangle};
 pub use guide::{Guide, GuideStats};
 pub use intersector::Intersector;
 pub use low_discrepancy::{hammersley, radical_inverse_base2, Pcg32};
-pub use scattering::{Lambertian, ScatteringFunction};
+pub use scattering::{Lambertian, SampledDirection, ScatteringFunction};
 pub use update_rule::{blend, classify_target, IntegralEstimator, LearningRate, UpdateOutcome, UpdateRule};
 
 #[cfg(feature = "env")]

@@ -2,7 +2,7 @@
 
 use core::f32::consts::FRAC_1_PI;
 
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 
 /// The cosine-weighted BSDF `fs(wi, wo)·|cos θi|` at a surface point, as one scalar
 /// (a renderer passes luminance or the largest colour channel), per steradian.
@@ -20,6 +20,29 @@ pub trait ScatteringFunction {
     fn lambertian_albedo(&self) -> Option<f32> {
         None
     }
+
+    /// A direction `wi` drawn from two uniforms `u` with some density p(wi) > 0 where the
+    /// function is non-zero, and its weight `fs(wi, wo)·|cos θi| / p(wi)`; `None` (the
+    /// default) when the function cannot sample itself, or when the draw failed (the
+    /// estimate is then zero). Used by [`IntegralEstimator::BsdfSampled`](crate::IntegralEstimator::BsdfSampled).
+    fn sample_cos(&self, wo: Vec3, u: Vec2) -> Option<SampledDirection> {
+        let _ = (wo, u);
+        None
+    }
+
+    /// Whether [`sample_cos`](Self::sample_cos) is implemented.
+    fn can_sample(&self) -> bool {
+        false
+    }
+}
+
+/// A direction drawn by [`ScatteringFunction::sample_cos`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SampledDirection {
+    /// Unit world direction towards the light.
+    pub wi: Vec3,
+    /// `fs(wi, wo)·|cos θi| / p(wi)`: the sample's weight.
+    pub weight: f32,
 }
 
 impl<F: Fn(Vec3, Vec3) -> f32> ScatteringFunction for F {

@@ -81,6 +81,14 @@ pub enum IntegralEstimator {
     /// equals the integral for a constant Q and a Lambertian BSDF, and overestimates
     /// otherwise; Dahm & Keller found it worse, it is kept for comparison.
     MaxEntry,
+    /// For a Lambertian BSDF the exact weighted sum (as [`BsdfWeightedSum`](Self::BsdfWeightedSum));
+    /// for any other that can sample itself ([`ScatteringFunction::sample_cos`]), one
+    /// direction ω drawn from it: Q(ω)·fs·cos θ/pdf, unbiased for the piecewise-constant Q
+    /// at O(1) instead of N BSDF evaluations (glossy surfaces); the weighted sum for
+    /// BSDFs that cannot sample.
+    ///
+    /// [`ScatteringFunction::sample_cos`]: crate::ScatteringFunction::sample_cos
+    BsdfSampled,
 }
 
 /// The complete update rule: learning rate and integral estimator.
@@ -94,7 +102,7 @@ pub struct UpdateRule {
 
 impl Default for UpdateRule {
     fn default() -> Self {
-        Self { learning_rate: LearningRate::SimpleAverage, integral: IntegralEstimator::BsdfWeightedSum }
+        Self { learning_rate: LearningRate::SimpleAverage, integral: IntegralEstimator::BsdfSampled }
     }
 }
 

@@ -8,7 +8,7 @@ use glam::{Vec2, Vec3};
 use guiding_core::environment::{EnvCell, EnvSample};
 use guiding_core::{
     DirectionalDistribution, EnvTileGuide, Guide, Hit, Intersector, Lambertian, LightGuide, Pcg32, Ray,
-    ScatteringFunction,
+    SampledDirection, ScatteringFunction,
 };
 
 use crate::color::luminance;
@@ -271,15 +271,26 @@ impl GuideClock {
     }
 }
 
-/// A BSDF as the guide's integral estimate sees it: scalar fs·cos (luminance).
+/// A BSDF as the guide's integral estimate sees it: scalar fs·cos (luminance), and the
+/// material's own sampler (with `u_lobe` picking its lobe).
 struct ScalarBsdf<'a> {
     material: &'a Material,
     shading: &'a ShadingFrame,
+    u_lobe: f32,
 }
 
 impl ScatteringFunction for ScalarBsdf<'_> {
     fn eval_cos(&self, wi: Vec3, wo: Vec3) -> f32 {
         luminance(self.material.eval(self.shading, wo, wi))
+    }
+
+    fn sample_cos(&self, wo: Vec3, u: Vec2) -> Option<SampledDirection> {
+        let sample = self.material.sample(self.shading, wo, u, self.u_lobe)?;
+        Some(SampledDirection { wi: sample.wi, weight: luminance(sample.weight) })
+    }
+
+    fn can_sample(&self) -> bool {
+        true
     }
 }
 
@@ -508,12 +519,15 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             };
             if learning && !delta {
                 if let (Some(last), Some(region), Some(guide)) = (scratch.vertices.last_mut(), region, self.guide) {
-                    let u = rng.next_vec2();
+                    let (u, u_lobe) = (rng.next_vec2(), rng.next_f32());
                     let estimate = clock.time(|| match material.surface {
                         Surface::Diffuse { albedo } => {
                             guide.estimate_integral(region, wo, &Lambertian { normal, albedo: luminance(albedo) }, u)
                         }
-                        _ => guide.estimate_integral(region, wo, &ScalarBsdf { material, shading: &shading }, u),
+                        _ => {
+                            let bsdf = ScalarBsdf { material, shading: &shading, u_lobe };
+                            guide.estimate_integral(region, wo, &bsdf, u)
+                        }
                     });
                     last.onward = Onward::Integral(estimate);
                 }

@@ -132,7 +132,7 @@ pub fn render<I: Intersector, G: Guide>(
                 let mut counters = PathCounters::default();
                 let mut row_sum = [0.0f64; 3];
                 for (x, pixel) in row.iter_mut().enumerate() {
-                    let mut rng = Pcg32::new(pass_seed, (y * width + x) as u64);
+                    let mut rng = pixel_rng(pass_seed, (y * width + x) as u64);
                     let ray = tracer.camera_ray(x as u32, y as u32, &mut rng);
                     let radiance = tracer.radiance(ray, &mut rng, scratch, &mut counters);
                     // A NaN or infinite sample would poison the pixel for good: count the
@@ -195,4 +195,20 @@ pub fn render<I: Intersector, G: Guide>(
     let image = Progress { passes: statistics.passes, seconds: 0.0, film: &film, counters: statistics.counters }
         .image(width, height);
     (image, statistics)
+}
+
+/// SplitMix64's finaliser: a bijective mix in which every input bit affects every output bit.
+fn mix64(mut z: u64) -> u64 {
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
+}
+
+/// The generator of one pixel in one pass. PCG streams that differ only in their
+/// increment (one per pixel, from the same seed) give correlated sequences: a
+/// furnace's guided-nee mean moved by 1 % (4 standard errors) when a path drew one
+/// more number per vertex. Hashing the pixel into the seed and the stream avoids it.
+fn pixel_rng(pass_seed: u64, pixel: u64) -> Pcg32 {
+    let hashed = mix64(pixel.wrapping_add(0x9e37_79b9_7f4a_7c15));
+    Pcg32::new(mix64(pass_seed ^ hashed), hashed)
 }

@@ -153,6 +153,21 @@ fn door_means_agree_across_integrators_and_update_rules() {
 }
 
 #[test]
+fn glossy_means_agree_under_either_integral_estimate() {
+    // Rough metal and glass: the one-sample BSDF estimate of ∫Q fs cos replaces the sum
+    // over every patch there, and must learn a guide that keeps the estimator unbiased.
+    let scene = support::repository_scene("glossy", 32, 24);
+    let reference = mean_estimate(&render_scene(&scene, settings(Method::Nee), None, 512, 71));
+    for (i, integral) in [IntegralEstimator::BsdfWeightedSum, IntegralEstimator::BsdfSampled].into_iter().enumerate() {
+        let update_rule = UpdateRule { integral, ..Default::default() };
+        let guide = HemisphereGridSettings { update_rule, probe_count: Some(400), ..Default::default() };
+        let estimate =
+            mean_estimate(&render_scene(&scene, settings(Method::GuidedNee), Some(guide.into()), 256, 80 + i as u64));
+        support::assert_agree(&format!("guided-nee {integral:?} vs nee"), &estimate, &reference);
+    }
+}
+
+#[test]
 fn many_lights_means_agree_across_light_selections() {
     let scene = support::repository_scene("many_lights", 32, 24);
     let with =

@@ -138,6 +138,9 @@ enum LodestarIntegralEstimator
   LODESTAR_INTEGRAL_ESTIMATOR_STRATIFIED_PATCHES = 1,
   // π · max_j Q_j fs cos θ_j (Q-learning's best action), for comparison.
   LODESTAR_INTEGRAL_ESTIMATOR_MAX_ENTRY = 2,
+  // Lambertian: as `BsdfWeightedSum`; other BSDFs: one direction drawn from the BSDF.
+  // A C callback cannot sample, so through this API it equals `BsdfWeightedSum`.
+  LODESTAR_INTEGRAL_ESTIMATOR_BSDF_SAMPLED = 3,
 };
 #ifndef __cplusplus
 #if __STDC_VERSION__ >= 202311L

@@ -49,6 +49,9 @@ pub enum LodestarIntegralEstimator {
     StratifiedPatches = 1,
     /// π · max_j Q_j fs cos θ_j (Q-learning's best action), for comparison.
     MaxEntry = 2,
+    /// Lambertian: as `BsdfWeightedSum`; other BSDFs: one direction drawn from the BSDF.
+    /// A C callback cannot sample, so through this API it equals `BsdfWeightedSum`.
+    BsdfSampled = 3,
 }
 
 /// Everything that shapes a guide. Fill it with `lodestar_guide_config_default`, then
@@ -124,6 +127,7 @@ impl LodestarGuideConfig {
                 IntegralEstimator::BsdfWeightedSum => LodestarIntegralEstimator::BsdfWeightedSum,
                 IntegralEstimator::StratifiedPatches => LodestarIntegralEstimator::StratifiedPatches,
                 IntegralEstimator::MaxEntry => LodestarIntegralEstimator::MaxEntry,
+                IntegralEstimator::BsdfSampled => LodestarIntegralEstimator::BsdfSampled,
             } as u32,
         }
     }
@@ -165,7 +169,8 @@ impl LodestarGuideConfig {
             0 => IntegralEstimator::BsdfWeightedSum,
             1 => IntegralEstimator::StratifiedPatches,
             2 => IntegralEstimator::MaxEntry,
-            other => return Err(unknown("integral_estimator", other, "LodestarIntegralEstimator (0..=2)")),
+            3 => IntegralEstimator::BsdfSampled,
+            other => return Err(unknown("integral_estimator", other, "LodestarIntegralEstimator (0..=3)")),
         };
         let two_sided = match self.two_sided {
             0 => false,
@@ -240,7 +245,7 @@ mod tests {
             (|c| c.structure = 7, LodestarStatus::UnknownEnumValue, "structure"),
             (|c| c.mapping = 2, LodestarStatus::UnknownEnumValue, "mapping"),
             (|c| c.learning_rate = 9, LodestarStatus::UnknownEnumValue, "learning_rate"),
-            (|c| c.integral_estimator = 3, LodestarStatus::UnknownEnumValue, "integral_estimator"),
+            (|c| c.integral_estimator = 4, LodestarStatus::UnknownEnumValue, "integral_estimator"),
             (|c| c.initial_q = f32::NAN, LodestarStatus::NonFiniteArgument, "initial_q"),
             (|c| c.uniform_mix = 2.0, LodestarStatus::InvalidConfig, "uniform_mix"),
             (|c| c.two_sided = 2, LodestarStatus::InvalidArgument, "two_sided"),

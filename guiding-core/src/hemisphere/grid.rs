@@ -504,7 +504,13 @@ impl Guide for HemisphereGrid {
             None => bsdf.eval_cos(frame.to_world(self.patch_centers[k]), wo),
         };
         let estimate = match self.settings.update_rule.integral {
-            IntegralEstimator::BsdfWeightedSum => match lambertian {
+            IntegralEstimator::BsdfSampled if lambertian.is_none() && bsdf.can_sample() => {
+                let Some(sample) = bsdf.sample_cos(wo, u) else { return 0.0 };
+                let patch = self.settings.layout.patch_of(frame.to_local(sample.wi));
+                let q = patch.map_or(0.0, |k| atomic_f32::load(&q[k]));
+                q as f64 * sample.weight as f64
+            }
+            IntegralEstimator::BsdfWeightedSum | IntegralEstimator::BsdfSampled => match lambertian {
                 Some(albedo) => {
                     let sum = atomic_f32::load(&self.lambertian_sums[probe.0 as usize]).max(0.0);
                     albedo as f64 / core::f64::consts::PI * sum as f64
@@ -649,5 +655,61 @@ mod tests {
             assert!((running - exact).abs() <= 1e-4 * exact, "{running} vs {exact}");
             grid.rebuild_sampling();
         }
+    }
+
+    /// A glossy lobe about the mirror direction that samples itself uniformly over the
+    /// hemisphere: its one-sample estimate averages to the stratified sum.
+    struct UniformlySampledLobe;
+
+    impl ScatteringFunction for UniformlySampledLobe {
+        fn eval_cos(&self, wi: Vec3, wo: Vec3) -> f32 {
+            let mirror = Vec3::new(-wo.x, -wo.y, wo.z);
+            if wi.z <= 0.0 {
+                return 0.0;
+            }
+            3.0 * libm::powf(wi.dot(mirror).max(0.0), 8.0) * wi.z
+        }
+
+        fn sample_cos(&self, wo: Vec3, u: Vec2) -> Option<crate::SampledDirection> {
+            let sample = crate::UniformHemisphere::new(Vec3::Z).sample(u);
+            Some(crate::SampledDirection {
+                wi: sample.direction,
+                weight: self.eval_cos(sample.direction, wo) / sample.pdf,
+            })
+        }
+
+        fn can_sample(&self) -> bool {
+            true
+        }
+    }
+
+    /// The BSDF-sampled estimate is unbiased for the piecewise-constant Q: its mean over
+    /// many draws matches the stratified-patch estimate's (itself unbiased).
+    #[test]
+    fn the_bsdf_sampled_estimate_averages_to_the_stratified_one() {
+        let estimate = |integral: IntegralEstimator, rng: &mut crate::Pcg32, n: usize| {
+            let settings = HemisphereGridSettings {
+                update_rule: crate::UpdateRule { integral, ..Default::default() },
+                ..Default::default()
+            };
+            let (mut grid, probe) = one_probe(settings);
+            let values: alloc::vec::Vec<f32> = (0..grid.patch_count()).map(|k| 0.5 + (k % 7) as f32).collect();
+            grid.set_q_values(probe, &values);
+            grid.rebuild_sampling();
+            let wo = Vec3::new(0.3, -0.2, 0.93).normalize();
+            (0..n)
+                .map(|_| grid.estimate_integral(probe, wo, &UniformlySampledLobe, rng.next_vec2()) as f64)
+                .sum::<f64>()
+                / n as f64
+        };
+        let mut rng = crate::Pcg32::new(8, 8);
+        let stratified = estimate(IntegralEstimator::StratifiedPatches, &mut rng, 4000);
+        let sampled = estimate(IntegralEstimator::BsdfSampled, &mut rng, 400_000);
+        assert!((sampled / stratified - 1.0).abs() < 0.01, "sampled {sampled} vs stratified {stratified}");
+        // A Lambertian BSDF takes the exact sum under either.
+        let lambertian = crate::Lambertian { normal: Vec3::Z, albedo: 0.5 };
+        let (grid, probe) = one_probe(HemisphereGridSettings::default());
+        let exact = grid.estimate_integral(probe, Vec3::Z, &lambertian, Vec2::ZERO);
+        assert!((exact - 0.5 * grid.settings().initial_q).abs() < 1e-6 * exact.max(1e-30), "{exact}");
     }
 }

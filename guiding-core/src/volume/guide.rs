@@ -431,7 +431,8 @@ impl Guide for IrradianceVolume {
 
     /// `BsdfWeightedSum`: for a Lambertian BSDF, albedo × the leaf's spherical-harmonic
     /// cosine integral about the region's normal (Q as of the last rebuild; nine terms),
-    /// otherwise Σ_j Q_j·fs(ω_j)·cos θ_j·ΔΩ at patch centres. `StratifiedPatches`: the
+    /// otherwise Σ_j Q_j·fs(ω_j)·cos θ_j·ΔΩ at patch centres. `BsdfSampled`: the same for
+    /// Lambertian BSDFs, one BSDF-drawn direction otherwise. `StratifiedPatches`: the
     /// same sum at one jittered direction per patch. `MaxEntry`: π·max_j of the centre
     /// terms.
     fn estimate_integral<S: ScatteringFunction + ?Sized>(
@@ -450,11 +451,18 @@ impl Guide for IrradianceVolume {
         };
         let terms = (0..patches).map(|k| atomic_f32::load(&q[k]) as f64);
         let estimate = match self.settings.update_rule.integral {
-            IntegralEstimator::BsdfWeightedSum if bsdf.lambertian_albedo().is_some() => {
+            IntegralEstimator::BsdfSampled if bsdf.lambertian_albedo().is_none() && bsdf.can_sample() => {
+                let Some(sample) = bsdf.sample_cos(wo, u) else { return 0.0 };
+                let q = self.settings.layout.patch_of(sample.wi).map_or(0.0, |k| atomic_f32::load(&q[k]));
+                q as f64 * sample.weight as f64
+            }
+            IntegralEstimator::BsdfWeightedSum | IntegralEstimator::BsdfSampled
+                if bsdf.lambertian_albedo().is_some() =>
+            {
                 let albedo = bsdf.lambertian_albedo().unwrap_or(0.0) as f64;
                 albedo * irradiance_sh::cosine_integral(&self.irradiance[region.leaf as usize], region.normal) as f64
             }
-            IntegralEstimator::BsdfWeightedSum => {
+            IntegralEstimator::BsdfWeightedSum | IntegralEstimator::BsdfSampled => {
                 solid_angle * terms.enumerate().map(|(k, q)| q * at_center(k) as f64).sum::<f64>()
             }
             IntegralEstimator::StratifiedPatches => {
