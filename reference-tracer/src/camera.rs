@@ -64,14 +64,24 @@ impl Camera {
         Self { width, height, ..*self }
     }
 
+    /// Eye, unit forward, right and up directions, and tan(fov_y / 2) at this
+    /// resolution: what [`ray`](Self::ray) computes with (for the GPU tracer).
+    pub fn basis(&self) -> (Vec3, Vec3, Vec3, Vec3, f32) {
+        (self.eye, self.forward, self.right, self.up, self.tan_half_fov_y())
+    }
+
+    fn tan_half_fov_y(&self) -> f32 {
+        match self.fov_axis {
+            FovAxis::Vertical => self.tan_half_fov,
+            FovAxis::Horizontal => self.tan_half_fov * self.height as f32 / self.width as f32,
+        }
+    }
+
     /// The primary ray through image point (x, y) in pixels from the top-left corner
     /// (a pixel's area is [x, x+1) × [y, y+1)).
     pub fn ray(&self, image_point: Vec2) -> Ray {
         let aspect = self.width as f32 / self.height as f32;
-        let tan_half_fov_y = match self.fov_axis {
-            FovAxis::Vertical => self.tan_half_fov,
-            FovAxis::Horizontal => self.tan_half_fov / aspect,
-        };
+        let tan_half_fov_y = self.tan_half_fov_y();
         let ndc_x = (2.0 * image_point.x / self.width as f32 - 1.0) * aspect * tan_half_fov_y;
         let ndc_y = (1.0 - 2.0 * image_point.y / self.height as f32) * tan_half_fov_y;
         let direction = (self.forward + self.right * ndc_x + self.up * ndc_y).normalize();

@@ -69,7 +69,8 @@ struct CompareArgs {
     /// Comma-separated methods, e.g. pt,nee,guided,guided-nee; a method may name its
     /// light selection, e.g. nee:uniform,nee:power,nee:learned (else --light-selection),
     /// its environment sampling, e.g. nee+luminance,nee+tiles (else --env-sampling), and
-    /// its guide structure, e.g. guided-nee@mixture (else every one --guide lists).
+    /// its guide structure, e.g. guided-nee@mixture (else every one --guide lists), and
+    /// the GPU tracer before it, e.g. gpu:nee (the `gpu` feature).
     #[arg(long, value_delimiter = ',', value_parser = parse_compared_method, required = true)]
     methods: Vec<ComparedMethod>,
     /// Wall-clock seconds per method.
@@ -235,6 +236,10 @@ pub struct TraceOptions {
     /// Ray tracing library: obvhs (CWBVH), obvhs-bvh2, or embree (needs the `embree` feature).
     #[arg(long, default_value = "obvhs", value_parser = IntersectorChoice::from_name)]
     intersector: IntersectorChoice,
+    /// Where paths are traced: cpu (all cores), or gpu (a wgpu compute shader on a
+    /// Vulkan adapter; needs the `gpu` feature). compare takes gpu:METHOD instead.
+    #[arg(long, default_value = "cpu", value_parser = Device::from_name)]
+    device: Device,
     /// Next-event light selection: auto (learned with many lights, else power; see the
     /// printed plan), uniform, power, or learned (Eq. 3, per grid cell).
     #[arg(long, default_value = "auto", value_parser = parse_light_selection)]
@@ -316,6 +321,8 @@ fn parse_guide_choice(s: &str) -> Result<GuideChoice, String> {
 /// One method of `compare`: METHOD[:LIGHT_SELECTION][+ENVIRONMENT_SAMPLING][@GUIDE].
 #[derive(Clone, Copy, Debug)]
 struct ComparedMethod {
+    /// Where it traces (`gpu:` before the method).
+    device: Device,
     method: Method,
     selection: Option<LightSelection>,
     environment: Option<EnvironmentSampling>,
@@ -328,11 +335,16 @@ impl ComparedMethod {
         let selection = self.selection.map(|s| format!(":{}", s.name())).unwrap_or_default();
         let environment = self.environment.map(|e| format!("+{}", e.name())).unwrap_or_default();
         let guide = self.guide.map(|g| format!("@{}", g.name())).unwrap_or_default();
-        format!("{}{selection}{environment}{guide}", self.method.name())
+        let device = if self.device == Device::Gpu { "gpu:" } else { "" };
+        format!("{device}{}{selection}{environment}{guide}", self.method.name())
     }
 }
 
 fn parse_compared_method(s: &str) -> Result<ComparedMethod, String> {
+    let (device, s) = match s.strip_prefix("gpu:") {
+        Some(rest) => (Device::Gpu, rest),
+        None => (Device::Cpu, s),
+    };
     let (s, guide) = match s.split_once('@') {
         Some((rest, guide)) => (rest, Some(GuideStructure::from_name(guide)?)),
         None => (s, None),
@@ -345,7 +357,7 @@ fn parse_compared_method(s: &str) -> Result<ComparedMethod, String> {
         Some((method, selection)) => (parse_method(method)?, Some(LightSelection::from_name(selection)?)),
         None => (parse_method(rest)?, None),
     };
-    Ok(ComparedMethod { method, selection, environment, guide })
+    Ok(ComparedMethod { device, method, selection, environment, guide })
 }
 
 fn parse_light_rule(s: &str) -> Result<LightUpdateRule, String> {
@@ -526,6 +538,27 @@ pub struct SetupTimes {
     pub guide: f64,
 }
 
+/// Where paths are traced.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Device {
+    /// The CPU tracer on every core (rayon).
+    #[default]
+    Cpu,
+    /// The GPU tracer (feature `gpu`).
+    Gpu,
+}
+
+impl Device {
+    /// Parses `cpu` or `gpu`.
+    pub fn from_name(name: &str) -> Result<Self, String> {
+        match name {
+            "cpu" => Ok(Device::Cpu),
+            "gpu" => Ok(Device::Gpu),
+            _ => Err(format!("unknown device `{name}` (cpu, gpu)")),
+        }
+    }
+}
+
 /// A scene loaded with its intersector and, for guided methods, its guide.
 pub struct Prepared {
     /// The scene.
@@ -543,9 +576,51 @@ pub struct Prepared {
     pub plan: GuidePlan,
     /// Set-up timings.
     pub times: SetupTimes,
+    /// Where [`render`](Self::render) traces paths.
+    pub device: Device,
+    /// The scene on the GPU, once a GPU render has uploaded it.
+    #[cfg(feature = "gpu")]
+    gpu: Option<crate::gpu::GpuTracer>,
 }
 
 impl Prepared {
+    #[cfg(feature = "gpu")]
+    fn render_on_gpu(
+        &mut self,
+        settings: &RenderSettings,
+        on_pass: impl FnMut(&Progress<'_>),
+    ) -> Result<(Image, RenderStatistics), String> {
+        let grid = match self.guide.as_mut() {
+            Some(DirectionalGuide::Hemisphere(grid)) if settings.integrator.method.uses_guide() => Some(grid.as_mut()),
+            Some(_) if settings.integrator.method.uses_guide() => {
+                return Err("the GPU tracer guides with a hemisphere grid only (--guide hemisphere)".into())
+            }
+            _ => None,
+        };
+        if self.gpu.is_none() {
+            let context = crate::gpu::GpuContext::new()?;
+            eprintln!("gpu: {}", context.describe());
+            let tracer = crate::gpu::GpuTracer::new(context, &self.scene, &settings.integrator, grid.as_deref())?;
+            self.gpu = Some(tracer);
+        }
+        let gpu = self.gpu.as_mut().ok_or("no GPU tracer")?;
+        let result = gpu.render(settings, on_pass)?;
+        if let Some(grid) = grid {
+            gpu.download_guide(grid)?;
+        }
+        Ok(result)
+    }
+
+    #[cfg(not(feature = "gpu"))]
+    fn render_on_gpu(
+        &mut self,
+        _settings: &RenderSettings,
+        _on_pass: impl FnMut(&Progress<'_>),
+    ) -> Result<(Image, RenderStatistics), String> {
+        Err("this lodestar was built without the GPU tracer (cargo build --release -p reference-tracer --features gpu)"
+            .into())
+    }
+
     /// Bytes of every structure `method` learns with: the directional guide (guided
     /// methods), the light guide and the environment guide (as built by the plan).
     pub fn learned_bytes(&self, method: Method) -> usize {
@@ -557,16 +632,19 @@ impl Prepared {
 
     /// Renders with the learners built (the directional guide only for guided
     /// methods), calling `on_pass` after every pass; the guide's structure picks the
-    /// tracer's instance.
+    /// tracer's instance. On the GPU the scene is uploaded at the first render.
     pub fn render(
         &mut self,
         settings: &RenderSettings,
         mut on_pass: impl FnMut(&Progress<'_>),
-    ) -> (Image, RenderStatistics) {
+    ) -> Result<(Image, RenderStatistics), String> {
+        if self.device == Device::Gpu {
+            return self.render_on_gpu(settings, on_pass);
+        }
         let lights = self.light_guide.as_mut();
         let environment = self.environment_guide.as_mut();
         let (scene, intersector) = (&self.scene, &self.intersector);
-        match self.guide.as_mut().filter(|_| settings.integrator.method.uses_guide()) {
+        Ok(match self.guide.as_mut().filter(|_| settings.integrator.method.uses_guide()) {
             Some(DirectionalGuide::Hemisphere(guide)) => {
                 let learners = Learners { directions: Some(guide.as_mut()), lights, environment };
                 render(scene, intersector, learners, settings, &mut on_pass)
@@ -583,7 +661,7 @@ impl Prepared {
                 let learners: Learners<'_, HemisphereGrid> = Learners { directions: None, lights, environment };
                 render(scene, intersector, learners, settings, &mut on_pass)
             }
-        }
+        })
     }
 }
 
@@ -699,7 +777,18 @@ pub fn prepare_with_lights(
         _ => None,
     };
     let times = SetupTimes { load, bvh: bvh_seconds, guide: start.elapsed().as_secs_f64() };
-    Ok(Prepared { scene, intersector, guide, light_guide, environment_guide, plan, times })
+    Ok(Prepared {
+        scene,
+        intersector,
+        guide,
+        light_guide,
+        environment_guide,
+        plan,
+        times,
+        device: Device::Cpu,
+        #[cfg(feature = "gpu")]
+        gpu: None,
+    })
 }
 
 fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool, String> {
@@ -747,7 +836,7 @@ pub fn render_prepared(
     reference: Option<&Image>,
     report_times: &[f64],
     show_progress: bool,
-) -> (Image, RenderStatistics, Vec<Checkpoint>) {
+) -> Result<(Image, RenderStatistics, Vec<Checkpoint>), String> {
     let (width, height) = (prepared.scene.camera.width as usize, prepared.scene.camera.height as usize);
     let bar = if show_progress { progress_bar(settings.budget) } else { ProgressBar::hidden() };
     let mut checkpoints = Vec::new();
@@ -774,7 +863,7 @@ pub fn render_prepared(
                 }
             }
         }
-    });
+    })?;
     bar.finish_and_clear();
     if let Some(reference) = reference {
         if checkpoints.last().is_none_or(|c| c.spp != statistics.passes) {
@@ -788,7 +877,7 @@ pub fn render_prepared(
             }
         }
     }
-    (image, statistics, checkpoints)
+    Ok((image, statistics, checkpoints))
 }
 
 fn sibling(path: &Path, extension: &str) -> PathBuf {
@@ -903,6 +992,7 @@ fn run_render(args: &RenderArgs) -> Result<(), String> {
     let mut prepared =
         prepare_with_lights(&args.scene, options.intersector, guide, options.light_request(args.integrator)?)?;
     resize(&mut prepared, options.resolution);
+    prepared.device = options.device;
     for warning in &prepared.scene.warnings {
         eprintln!("warning: {}: {warning}", args.scene.display());
     }
@@ -923,7 +1013,7 @@ fn run_render(args: &RenderArgs) -> Result<(), String> {
         train_seconds: options.train_seconds,
     };
     let (image, statistics, checkpoints) =
-        pool.install(|| render_prepared(&mut prepared, &settings, reference.as_ref(), &[], true));
+        pool.install(|| render_prepared(&mut prepared, &settings, reference.as_ref(), &[], true))?;
     write_outputs(&args.out, &image, args.pfm)?;
     let json = statistics_json(args.integrator, &prepared, &statistics, &image, pool.current_num_threads());
     let json_path = sibling(&args.out, "json");
@@ -967,7 +1057,7 @@ fn run_reference(args: &ReferenceArgs) -> Result<(), String> {
     };
     let settings =
         RenderSettings { integrator, budget: Budget::SamplesPerPixel(args.spp), seed: args.seed, train_seconds: 0.0 };
-    let (image, statistics, _) = pool.install(|| render_prepared(&mut prepared, &settings, None, &[], true));
+    let (image, statistics, _) = pool.install(|| render_prepared(&mut prepared, &settings, None, &[], true))?;
     write_outputs(&args.out, &image, args.pfm)?;
     let json = statistics_json(args.integrator, &prepared, &statistics, &image, pool.current_num_threads());
     std::fs::write(sibling(&args.out, "json"), serde_json::to_string_pretty(&json).unwrap_or_default())
@@ -1011,6 +1101,7 @@ fn run_compare(args: &CompareArgs) -> Result<(), String> {
             options.light_request(method)?,
         )?;
         resize(&mut prepared, options.resolution);
+        prepared.device = compared.device;
         eprintln!("{name}: plan: {}", prepared.plan.describe());
         let camera = &prepared.scene.camera;
         if (reference.width, reference.height) != (camera.width as usize, camera.height as usize) {
@@ -1027,7 +1118,7 @@ fn run_compare(args: &CompareArgs) -> Result<(), String> {
             train_seconds: options.train_seconds,
         };
         let (image, statistics, checkpoints) =
-            pool.install(|| render_prepared(&mut prepared, &settings, Some(&reference), &report_times, true));
+            pool.install(|| render_prepared(&mut prepared, &settings, Some(&reference), &report_times, true))?;
         let image_path = args.out.join(format!("{}.exr", name.replace([':', '+'], "-")));
         write_outputs(&image_path, &image, false)?;
         let json = statistics_json(method, &prepared, &statistics, &image, pool.current_num_threads());

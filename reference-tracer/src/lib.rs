@@ -14,6 +14,8 @@ pub mod cli;
 pub mod color;
 pub mod directional_guide;
 pub mod environment;
+#[cfg(feature = "gpu")]
+pub mod gpu;
 pub mod import;
 pub mod integrator;
 pub mod lights;

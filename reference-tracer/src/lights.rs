@@ -79,6 +79,18 @@ impl AreaLights {
         cdf_probability(&self.cdf, light as usize)
     }
 
+    /// The scene triangle of `light`, its emitted radiance and its area.
+    pub fn light(&self, light: u32) -> (u32, Vec3, f32) {
+        let l = light as usize;
+        (self.triangles[l], self.emission[l], self.areas[l])
+    }
+
+    /// The power CDF lights are selected by (guiding-core's [`cdf`](guiding_core::cdf)
+    /// layout).
+    pub fn power_cdf(&self) -> &[f32] {
+        &self.cdf
+    }
+
     /// The light index of a scene triangle, if it emits.
     pub fn light_of_triangle(&self, triangle: u32) -> Option<u32> {
         self.light_of_triangle.get(triangle as usize).copied().filter(|&l| l != u32::MAX)

@@ -126,6 +126,6 @@ fn a_scene_of_mirrors_and_glass_gets_no_directional_guide() {
         train_seconds: 0.0,
     };
     let mut prepared = prepared;
-    let (image, _) = prepared.render(&settings, |_| {});
+    let (image, _) = prepared.render(&settings, |_| {}).unwrap();
     assert!(image.pixels.iter().all(|p| p.is_finite()) && image.mean().max_element() > 0.0);
 }

@@ -26,7 +26,7 @@ fn render_small(path: &Path, width: u32, height: u32, spp: u32) -> Image {
         .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     prepared.scene.camera = prepared.scene.camera.with_resolution(width, height);
     let settings = RenderSettings { integrator, budget: Budget::SamplesPerPixel(spp), seed: 5, train_seconds: 0.0 };
-    let (image, _) = prepared.render(&settings, |_| {});
+    let (image, _) = prepared.render(&settings, |_| {}).unwrap();
     assert!(
         image.pixels.iter().all(|p| p.is_finite() && p.min_element() >= 0.0),
         "{}: non-finite pixels",

@@ -108,7 +108,7 @@ pub fn render_image(
     );
     let mut prepared = prepare_with_lights(scene, IntersectorChoice::default(), guide, lights).unwrap();
     let settings = RenderSettings { integrator, budget: Budget::SamplesPerPixel(spp), seed, train_seconds: 0.0 };
-    prepared.render(&settings, |_| {})
+    prepared.render(&settings, |_| {}).unwrap()
 }
 
 pub fn settings(method: Method) -> IntegratorSettings {

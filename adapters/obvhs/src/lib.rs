@@ -29,6 +29,7 @@
 //! assert!(bvh.occluded(&Ray::segment(Vec3::Y, Vec3::NEG_Y, 0.0, 2.0)));
 //! ```
 
+mod flat;
 mod watertight;
 
 use glam::{Vec3, Vec3A};
@@ -39,6 +40,7 @@ use obvhs::cwbvh::CwBvh;
 use obvhs::ray::RayHit;
 use obvhs::{Boundable, BvhBuildParams};
 
+pub use flat::{flat_bvh2, FlatBvh, FlatBvhNode};
 pub use watertight::{ShearedRay, TriangleHit};
 
 /// Which obvhs hierarchy to traverse.

@@ -275,6 +275,16 @@ impl HemisphereGrid {
         self.epoch
     }
 
+    /// Per patch ∫ cos θ dω over it (steradians): the Lambertian weights.
+    pub fn patch_cos_integrals(&self) -> &[f32] {
+        &self.patch_cos_integrals
+    }
+
+    /// Per probe Σ_k Q_k·∫_k cos θ dω (f32 bits), kept current by every update.
+    pub fn lambertian_sums(&self) -> &[AtomicU32] {
+        &self.lambertian_sums
+    }
+
     /// Probe positions, scene units, in storage order.
     pub fn probe_positions(&self) -> &[Vec3] {
         &self.positions

@@ -91,6 +91,16 @@ impl ProbeLookup {
         self.cell_size
     }
 
+    /// The corner of cell (0, 0, 0): a position's cell is ⌊(p − origin) / cell_size⌋.
+    pub fn origin(&self) -> Vec3 {
+        self.origin
+    }
+
+    /// How many shells of cells around a query's cell `nearest` searches.
+    pub fn max_rings(&self) -> u32 {
+        self.max_rings
+    }
+
     /// The bucket table: probes of bucket `b` are `bucket_starts[b]..bucket_starts[b+1]`.
     pub fn bucket_starts(&self) -> &[u32] {
         &self.bucket_starts

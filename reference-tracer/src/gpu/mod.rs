@@ -1,0 +1,494 @@
+//! The GPU tracer (feature `gpu`): the same estimators as the CPU tracer as one wgpu
+//! compute shader (`tracer.wgsl`), on any Vulkan adapter — in CI, Mesa's software
+//! rasteriser lavapipe.
+//!
+//! Design: a megakernel — one invocation traces one pixel's whole path per pass, in
+//! 8 × 8 workgroups. A wavefront design (a kernel per bounce, queues of rays between)
+//! keeps SIMD lanes busier on a GPU when paths diverge; the megakernel has one
+//! dispatch per pass, no ray queues in memory, and the integrator reads like the CPU's
+//! line for line, which is what the agreement tests need first.
+//!
+//! Scene upload (once): obvhs's BVH2 flattened by [`guiding_obvhs::flat_bvh2`] (32-byte
+//! nodes, triangles in leaf order), per-triangle geometric normal and material, the
+//! materials, the area lights with their power CDF (guiding-core's [`cdf`](guiding_core::cdf)
+//! layout, unchanged). Each pass writes its image; the host adds it into the f64 film
+//! and takes the pass mean, as the CPU renderer does.
+//!
+//! Guiding: a [`HemisphereGrid`]'s flat arrays are uploaded as they are (positions and
+//! normals as f32 triples, Q as f32 bits, visits, CDFs, Lambertian sums, the hash grid's
+//! bucket table); the shader locates the nearest probe with a similar normal, samples
+//! ∝ Q by CDF inversion, evaluates the mixture pdf for MIS, and learns by Eq. (1)/(2)
+//! with compare-exchange float updates on `atomic<u32>`. A second kernel rebuilds the
+//! CDFs of the probes that learned between passes. After the render Q and the visit
+//! counts are read back into the same grid ([`store_learned`]), which the CPU tracer
+//! can then use or save.
+//!
+//! What runs on the GPU: diffuse, conductor (GGX, optional complex-IOR Fresnel),
+//! dielectric and thin dielectric materials; area lights; a constant environment;
+//! geometric normals; the hemisphere grid in its cylindrical layout with the simple,
+//! region or exponential learning rates. Scenes or settings needing more (textures,
+//! masks, plastic, an image environment, the volume or the mixture) are refused with a
+//! message naming what is missing.
+
+mod context;
+mod guide_buffers;
+mod scene_buffers;
+
+use std::time::Instant;
+
+use bytemuck::{Pod, Zeroable};
+use glam::Vec3;
+use guiding_core::{HemisphereGrid, LearningRate};
+use wgpu::util::DeviceExt;
+
+pub use context::GpuContext;
+pub use guide_buffers::store_learned;
+use guide_buffers::GuideBuffers;
+use scene_buffers::SceneBuffers;
+
+use crate::environment::Sky;
+use crate::integrator::{IntegratorSettings, Method, PathCounters};
+use crate::output::Image;
+use crate::render::{Budget, Progress, RenderSettings, RenderStatistics};
+use crate::scene::Scene;
+
+/// The uniform block of `tracer.wgsl` (its `Params`).
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+#[repr(C)]
+struct Params {
+    width: u32,
+    height: u32,
+    pass_index: u32,
+    seed: u32,
+    max_depth: u32,
+    rr_depth: u32,
+    method: u32,
+    light_count: u32,
+    eye: [f32; 4],
+    forward: [f32; 4],
+    right: [f32; 4],
+    up: [f32; 4],
+    environment: [f32; 4],
+    scene: [f32; 4],
+    guide: [u32; 4],
+    guide_shape: [u32; 4],
+    guide_lookup: [f32; 4],
+    guide_rule: [f32; 4],
+}
+
+/// A scene uploaded to a GPU, ready to render passes.
+pub struct GpuTracer {
+    context: GpuContext,
+    pipeline: wgpu::ComputePipeline,
+    bind_group: wgpu::BindGroup,
+    rebuild: wgpu::ComputePipeline,
+    rebuild_group: wgpu::BindGroup,
+    guide: GuideBuffers,
+    /// Probes and patches of the uploaded grid (0 when unguided).
+    guide_size: (u32, u32),
+    params: Params,
+    params_buffer: wgpu::Buffer,
+    image: wgpu::Buffer,
+    image_readback: wgpu::Buffer,
+    counters: wgpu::Buffer,
+    counters_readback: wgpu::Buffer,
+    width: u32,
+    height: u32,
+}
+
+fn method_code(method: Method) -> u32 {
+    match method {
+        Method::Pt => 0,
+        Method::Nee => 1,
+        Method::Guided => 2,
+        Method::GuidedNee => 3,
+    }
+}
+
+/// What the GPU tracer cannot render in `scene`, if anything.
+pub fn unsupported(scene: &Scene) -> Option<String> {
+    if let Some(environment) = &scene.environment {
+        if matches!(environment.sky, Sky::Image(_)) {
+            return Some("an image environment".into());
+        }
+        if environment.sun.is_some() {
+            return Some("a sun".into());
+        }
+    }
+    if !scene.textures.is_empty() {
+        return Some("textures".into());
+    }
+    scene_buffers::unsupported_material(scene)
+}
+
+impl GpuTracer {
+    /// Uploads `scene` for `settings.method`, and `guide` for the guided methods. Errors
+    /// name what is missing: an adapter, or a feature the GPU tracer lacks.
+    pub fn new(
+        context: GpuContext,
+        scene: &Scene,
+        settings: &IntegratorSettings,
+        guide: Option<&HemisphereGrid>,
+    ) -> Result<Self, String> {
+        if let Some(what) = unsupported(scene) {
+            return Err(format!("the GPU tracer does not support {what} yet (render with --device cpu)"));
+        }
+        let guide = guide.filter(|_| settings.method.uses_guide());
+        if settings.method.uses_guide() && guide.is_none() {
+            return Err("the GPU tracer guides with a hemisphere grid only (--guide hemisphere)".into());
+        }
+        if let Some(what) = guide.and_then(guide_buffers::unsupported) {
+            return Err(format!("the GPU guide does not support {what} yet"));
+        }
+        let device = &context.device;
+        let buffers = SceneBuffers::new(scene)?;
+        let (width, height) = (scene.camera.width, scene.camera.height);
+        let (eye, forward, right, up, tan_half_fov_y) = scene.camera.basis();
+        let (low, high) = scene.bounds();
+        let environment = match &scene.environment {
+            Some(environment) => match environment.sky {
+                Sky::Constant(radiance) => radiance,
+                Sky::Image(_) => Vec3::ZERO,
+            },
+            None => Vec3::ZERO,
+        };
+        // Probability that next-event estimation picks the environment (integrator.rs).
+        let environment_choice = match (scene.environment.is_some(), scene.lights.is_empty()) {
+            (true, true) => 1.0,
+            (true, false) => 0.5,
+            (false, _) => 0.0,
+        };
+        let params = Params {
+            width,
+            height,
+            max_depth: settings.max_depth,
+            rr_depth: settings.rr_depth,
+            method: method_code(settings.method),
+            light_count: scene.lights.len() as u32,
+            eye: eye.extend(0.0).to_array(),
+            forward: forward.extend(tan_half_fov_y).to_array(),
+            right: right.extend(0.0).to_array(),
+            up: up.extend(0.0).to_array(),
+            environment: environment.extend(environment_choice).to_array(),
+            scene: [
+                1e-5 * (high - low).length().max(f32::MIN_POSITIVE),
+                settings.guide_probability,
+                guide.map_or(0.0, |g| g.settings().uniform_mix),
+                0.0,
+            ],
+            ..Default::default()
+        };
+        let mut params = params;
+        if let Some(grid) = guide {
+            let s = grid.settings();
+            let lookup = grid.lookup();
+            let (rate, parameter) = match s.update_rule.learning_rate {
+                LearningRate::Exponential { alpha } => (0.0, alpha),
+                LearningRate::SimpleAverage => (1.0, 0.0),
+                LearningRate::RegionVisits => (2.0, 0.0),
+                LearningRate::Global { .. } => (1.0, 0.0),
+            };
+            params.guide = [1, settings.learn as u32, grid.probe_count() as u32, grid.patch_count() as u32];
+            params.guide_shape = [
+                s.layout.resolution[0],
+                s.layout.resolution[1],
+                (lookup.bucket_starts().len() - 1) as u32,
+                lookup.max_rings(),
+            ];
+            params.guide_lookup = lookup.origin().extend(lookup.cell_size()).to_array();
+            let cos_max = s.max_normal_angle_deg.to_radians().cos();
+            params.guide_rule = [s.q_floor, cos_max, rate, parameter];
+        }
+        let params_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("params"),
+            contents: bytemuck::bytes_of(&params),
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        });
+        let pixels = width as u64 * height as u64;
+        let image_bytes = pixels * 16;
+        let image = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("pass image"),
+            size: image_bytes,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let image_readback = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("pass image readback"),
+            size: image_bytes,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let counters = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("counters"),
+            size: 16,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let counters_readback = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("counters readback"),
+            size: 16,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("tracer.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(include_str!("tracer.wgsl").into()),
+        });
+        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("trace"),
+            layout: None,
+            module: &module,
+            entry_point: Some("trace"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        let rebuild = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("rebuild"),
+            layout: None,
+            module: &module,
+            entry_point: Some("rebuild"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        let storage = buffers.uploaded(device);
+        let guide_buffers = GuideBuffers::new(device, guide);
+        let g = &guide_buffers;
+        let all = [
+            &params_buffer,
+            &storage.nodes,
+            &storage.triangles,
+            &storage.triangle_info,
+            &storage.light_of_triangle,
+            &storage.materials,
+            &storage.lights,
+            &storage.light_cdf,
+            &image,
+            &counters,
+            &g.positions,
+            &g.normals,
+            &g.bucket_starts,
+            &g.q,
+            &g.patch_visits,
+            &g.probe_visits,
+            &g.cdf,
+            &g.lambertian_sums,
+            &g.patch_cos_integrals,
+            &g.built_visits,
+        ];
+        let group = |pipeline: &wgpu::ComputePipeline, bindings: &[u32], label: &str| {
+            let entries: Vec<wgpu::BindGroupEntry> = bindings
+                .iter()
+                .map(|&b| wgpu::BindGroupEntry { binding: b, resource: all[b as usize].as_entire_binding() })
+                .collect();
+            device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some(label),
+                layout: &pipeline.get_bind_group_layout(0),
+                entries: &entries,
+            })
+        };
+        // Automatic layouts hold only the bindings an entry point uses: the rebuild
+        // kernel alone keeps the visit counts of the last build.
+        let bind_group = group(&pipeline, &(0..19).collect::<Vec<u32>>(), "trace");
+        let rebuild_group = group(&rebuild, &[0, 13, 15, 16, 17, 18, 19], "rebuild");
+        context.check_errors()?;
+        let guide_size = guide.map_or((0, 0), |g| (g.probe_count() as u32, g.patch_count() as u32));
+        Ok(Self {
+            context,
+            pipeline,
+            bind_group,
+            rebuild,
+            rebuild_group,
+            guide: guide_buffers,
+            guide_size,
+            params,
+            params_buffer,
+            image,
+            image_readback,
+            counters,
+            counters_readback,
+            width,
+            height,
+        })
+    }
+
+    /// Traces one pass; returns its image (radiance per pixel, top row first) and counters.
+    pub fn trace_pass(&mut self, pass_index: u32, seed: u64) -> Result<(Vec<[f32; 4]>, PathCounters), String> {
+        let (device, queue) = (&self.context.device, &self.context.queue);
+        self.params.pass_index = pass_index;
+        self.params.seed = (seed ^ (seed >> 32)) as u32;
+        queue.write_buffer(&self.params_buffer, 0, bytemuck::bytes_of(&self.params));
+        queue.write_buffer(&self.counters, 0, &[0u8; 16]);
+        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("pass") });
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, &self.bind_group, &[]);
+            pass.dispatch_workgroups(self.width.div_ceil(8), self.height.div_ceil(8), 1);
+            if self.params.guide[1] != 0 {
+                // Between passes: the CDFs of the probes that learned.
+                pass.set_pipeline(&self.rebuild);
+                pass.set_bind_group(0, &self.rebuild_group, &[]);
+                pass.dispatch_workgroups(self.guide_size.0.div_ceil(64), 1, 1);
+            }
+        }
+        encoder.copy_buffer_to_buffer(&self.image, 0, &self.image_readback, 0, self.image.size());
+        encoder.copy_buffer_to_buffer(&self.counters, 0, &self.counters_readback, 0, 16);
+        queue.submit([encoder.finish()]);
+        let image: Vec<[f32; 4]> = self.context.read(&self.image_readback)?;
+        let counts: Vec<u32> = self.context.read(&self.counters_readback)?;
+        let counters = PathCounters {
+            paths: counts[0] as u64,
+            nonzero_paths: counts[1] as u64,
+            rays: counts[2] as u64,
+            vertices: counts[3] as u64,
+            ..Default::default()
+        };
+        Ok((image, counters))
+    }
+
+    /// Renders progressively like [`crate::render::render`]: one pass per sample per
+    /// pixel until the budget; `on_pass` sees the state after every pass.
+    pub fn render(
+        &mut self,
+        settings: &RenderSettings,
+        mut on_pass: impl FnMut(&Progress),
+    ) -> Result<(Image, RenderStatistics), String> {
+        let (width, height) = (self.width as usize, self.height as usize);
+        let mut film = vec![[0.0f64; 3]; width * height];
+        let mut statistics = RenderStatistics::default();
+        let start = Instant::now();
+        loop {
+            let pass = statistics.passes;
+            let pass_seed = settings.seed ^ (pass as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+            let (image, counters) = self.trace_pass(pass, pass_seed)?;
+            let mut sum = [0.0f64; 3];
+            for (pixel, value) in film.iter_mut().zip(&image) {
+                for c in 0..3 {
+                    // A NaN or infinite sample counts as lost, as on the CPU.
+                    let v = if value[c].is_finite() { value[c] as f64 } else { 0.0 };
+                    pixel[c] += v;
+                    sum[c] += v;
+                }
+            }
+            statistics.pass_means.push(sum.map(|s| s / (width * height) as f64));
+            statistics.counters = statistics.counters + counters;
+            statistics.passes += 1;
+            let seconds = start.elapsed().as_secs_f64();
+            on_pass(&Progress { passes: statistics.passes, seconds, film: &film, counters: statistics.counters });
+            let done = match settings.budget {
+                Budget::SamplesPerPixel(spp) => statistics.passes >= spp,
+                Budget::Seconds(limit) => seconds >= limit,
+            };
+            if done {
+                statistics.render_seconds = seconds;
+                break;
+            }
+        }
+        let image = Progress { passes: statistics.passes, seconds: 0.0, film: &film, counters: statistics.counters }
+            .image(width, height);
+        Ok((image, statistics))
+    }
+
+    /// Reads the learned Q and visit counts back into `grid` (the grid this tracer was
+    /// built with) and rebuilds its sampling ([`store_learned`]).
+    pub fn download_guide(&self, grid: &mut HemisphereGrid) -> Result<(), String> {
+        if self.guide_size.0 as usize != grid.probe_count() || self.guide_size.1 as usize != grid.patch_count() {
+            return Err("the grid does not match the one uploaded".into());
+        }
+        let q = self.read_back(&self.guide.q)?;
+        let patch_visits = self.read_back(&self.guide.patch_visits)?;
+        let probe_visits = self.read_back(&self.guide.probe_visits)?;
+        store_learned(grid, &q, &patch_visits, &probe_visits);
+        Ok(())
+    }
+
+    /// Draws `count` directions from `probe`'s distribution on the GPU (unit direction
+    /// and the GPU's pdf per steradian each), for tests of the GPU sampler.
+    pub fn sample_guide(&mut self, probe: u32, count: u32, seed: u32) -> Result<Vec<[f32; 4]>, String> {
+        if probe >= self.guide_size.0 {
+            return Err(format!("probe {probe} of {}", self.guide_size.0));
+        }
+        let device = &self.context.device;
+        let samples = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("guide samples"),
+            size: count.max(1) as u64 * 16,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("tracer.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(include_str!("tracer.wgsl").into()),
+        });
+        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("sample_guide"),
+            layout: None,
+            module: &module,
+            entry_point: Some("sample_guide"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        let entries = [
+            wgpu::BindGroupEntry { binding: 0, resource: self.params_buffer.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 11, resource: self.guide.normals.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 16, resource: self.guide.cdf.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 20, resource: samples.as_entire_binding() },
+        ];
+        let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("sample_guide"),
+            layout: &pipeline.get_bind_group_layout(0),
+            entries: &entries,
+        });
+        self.params.pass_index = probe;
+        self.params.seed = seed;
+        self.context.queue.write_buffer(&self.params_buffer, 0, bytemuck::bytes_of(&self.params));
+        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("sample") });
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
+            pass.set_pipeline(&pipeline);
+            pass.set_bind_group(0, &group, &[]);
+            pass.dispatch_workgroups(count.div_ceil(64), 1, 1);
+        }
+        self.context.queue.submit([encoder.finish()]);
+        let words = self.read_back(&samples)?;
+        let sample = |c: &[u32]| [c[0], c[1], c[2], c[3]].map(f32::from_bits);
+        Ok(words.chunks_exact(4).map(sample).take(count as usize).collect())
+    }
+
+    /// Copies a storage buffer to the host.
+    fn read_back(&self, buffer: &wgpu::Buffer) -> Result<Vec<u32>, String> {
+        let device = &self.context.device;
+        let staging = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("guide readback"),
+            size: buffer.size(),
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("readback") });
+        encoder.copy_buffer_to_buffer(buffer, 0, &staging, 0, buffer.size());
+        self.context.queue.submit([encoder.finish()]);
+        self.context.read(&staging)
+    }
+
+    /// The adapter's name and backend, for reports.
+    pub fn adapter(&self) -> String {
+        self.context.describe()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    /// The shader parses and validates (naga, as wgpu does) without any GPU.
+    #[test]
+    fn the_shader_is_valid_wgsl() {
+        use wgpu::naga;
+        let source = include_str!("tracer.wgsl");
+        let module = naga::front::wgsl::parse_str(source).unwrap_or_else(|e| panic!("{}", e.emit_to_string(source)));
+        let mut validator =
+            naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all());
+        if let Err(e) = validator.validate(&module) {
+            panic!("{}", e.emit_to_string(source));
+        }
+        let entry_points: Vec<&str> = module.entry_points.iter().map(|e| e.name.as_str()).collect();
+        assert_eq!(entry_points, ["sample_guide", "rebuild", "trace"]);
+    }
+}
