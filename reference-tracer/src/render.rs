@@ -23,6 +23,21 @@ pub enum Budget {
     Seconds(f64),
 }
 
+impl Budget {
+    /// Whether a render that has done `passes` passes in `seconds` stops.
+    pub fn reached(&self, passes: u32, seconds: f64) -> bool {
+        match *self {
+            Budget::SamplesPerPixel(spp) => passes >= spp,
+            Budget::Seconds(limit) => seconds >= limit,
+        }
+    }
+}
+
+/// The seed of pass `pass` of a render seeded `seed`.
+pub fn pass_seed(seed: u64, pass: u32) -> u64 {
+    seed ^ (pass as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15)
+}
+
 /// Everything a render needs besides the scene, intersector and guide.
 #[derive(Clone, Copy, Debug)]
 pub struct RenderSettings {
@@ -54,6 +69,15 @@ pub struct RenderStatistics {
     pub guide_rebuild_seconds: f64,
     /// Mean radiance (RGB) of each pass's image, for error estimates.
     pub pass_means: Vec<[f64; 3]>,
+}
+
+impl RenderStatistics {
+    /// Counts a finished pass whose samples summed to `pass_sum` over `pixels` pixels.
+    pub fn add_pass(&mut self, pass_sum: [f64; 3], pixels: usize, counters: PathCounters) {
+        self.pass_means.push(pass_sum.map(|s| s / pixels as f64));
+        self.counters = self.counters + counters;
+        self.passes += 1;
+    }
 }
 
 /// The state after a pass, handed to the progress callback.
@@ -122,7 +146,7 @@ pub fn render<I: Intersector, G: Guide>(
             environment_guide.as_deref(),
             settings.integrator,
         );
-        let pass_seed = settings.seed ^ (pass as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+        let pass_seed = pass_seed(settings.seed, pass);
         // Rows come back in order, so the pass sum is added up in the same order on every
         // run: renders that do not learn are reproducible to the last bit.
         let rows: Vec<(PathCounters, [f64; 3])> = film
@@ -149,10 +173,7 @@ pub fn render<I: Intersector, G: Guide>(
         let (counters, pass_sum) = rows.iter().fold((PathCounters::default(), [0.0f64; 3]), |(c, s), (rc, rs)| {
             (c + *rc, [s[0] + rs[0], s[1] + rs[1], s[2] + rs[2]])
         });
-        let pixels = (width * height) as f64;
-        statistics.pass_means.push(pass_sum.map(|s| s / pixels));
-        statistics.counters = statistics.counters + counters;
-        statistics.passes += 1;
+        statistics.add_pass(pass_sum, width * height, counters);
         let rebuild = Instant::now();
         if settings.integrator.method.uses_guide() {
             if let Some(guide) = guide.as_deref_mut() {
@@ -183,11 +204,7 @@ pub fn render<I: Intersector, G: Guide>(
             continue;
         }
         on_pass(&Progress { passes: statistics.passes, seconds, film: &film, counters: statistics.counters });
-        let done = match settings.budget {
-            Budget::SamplesPerPixel(spp) => statistics.passes >= spp,
-            Budget::Seconds(limit) => seconds >= limit,
-        };
-        if done {
+        if settings.budget.reached(statistics.passes, seconds) {
             statistics.render_seconds = seconds;
             break;
         }

@@ -37,14 +37,22 @@ fn adapter_available(test: &str) -> bool {
     }
 }
 
-fn render(scene: &Path, device: Device, method: Method, spp: u32, seed: u64) -> (Image, RenderStatistics) {
-    let integrator = IntegratorSettings {
+/// Lights picked by power, the environment by luminance: nothing learned but the guide.
+fn power_lights() -> LightRequest {
+    LightRequest::new(Some(LightSelection::Power), Some(EnvironmentSampling::Luminance), true)
+}
+
+fn integrator(method: Method) -> IntegratorSettings {
+    IntegratorSettings {
         method,
         light_selection: LightSelection::Power,
         environment_sampling: EnvironmentSampling::Luminance,
         ..Default::default()
-    };
-    let lights = LightRequest::new(Some(LightSelection::Power), Some(EnvironmentSampling::Luminance), true);
+    }
+}
+
+fn render(scene: &Path, device: Device, method: Method, spp: u32, seed: u64) -> (Image, RenderStatistics) {
+    let (integrator, lights) = (integrator(method), power_lights());
     let mut prepared = prepare_with_lights(scene, IntersectorChoice::default(), None, lights).unwrap();
     prepared.device = device;
     let settings = RenderSettings { integrator, budget: Budget::SamplesPerPixel(spp), seed, train_seconds: 0.0 };
@@ -95,8 +103,7 @@ fn unsupported_scenes_are_refused_with_a_reason() {
     }
     // The window scene's image environment is not on the GPU yet.
     let scene = support::repository_scene("window", 8, 8);
-    let lights = LightRequest::new(Some(LightSelection::Power), Some(EnvironmentSampling::Luminance), true);
-    let mut prepared = prepare_with_lights(&scene, IntersectorChoice::default(), None, lights).unwrap();
+    let mut prepared = prepare_with_lights(&scene, IntersectorChoice::default(), None, power_lights()).unwrap();
     prepared.device = Device::Gpu;
     let settings = RenderSettings {
         integrator: IntegratorSettings { method: Method::Nee, ..Default::default() },
@@ -122,13 +129,7 @@ fn render_guided(
     seed: u64,
     probes: usize,
 ) -> (RenderStatistics, guiding_core::HemisphereGrid) {
-    let integrator = IntegratorSettings {
-        method,
-        light_selection: LightSelection::Power,
-        environment_sampling: EnvironmentSampling::Luminance,
-        ..Default::default()
-    };
-    let lights = LightRequest::new(Some(LightSelection::Power), Some(EnvironmentSampling::Luminance), true);
+    let (integrator, lights) = (integrator(method), power_lights());
     let mut prepared =
         prepare_with_lights(scene, IntersectorChoice::default(), Some(hemisphere(probes)), lights).unwrap();
     prepared.device = device;
@@ -188,13 +189,7 @@ fn the_gpu_sampler_matches_guiding_cores_pdf() {
     // A grid learned on the CPU, uploaded, sampled on the GPU.
     let scene = support::repository_scene("cornell", 24, 24);
     let (_, grid) = render_guided(&scene, Device::Cpu, Method::GuidedNee, 16, 5, 200);
-    let prepared = prepare_with_lights(
-        &scene,
-        IntersectorChoice::default(),
-        None,
-        LightRequest::new(Some(LightSelection::Power), Some(EnvironmentSampling::Luminance), true),
-    )
-    .unwrap();
+    let prepared = prepare_with_lights(&scene, IntersectorChoice::default(), None, power_lights()).unwrap();
     let integrator = IntegratorSettings { method: Method::GuidedNee, ..Default::default() };
     let mut gpu =
         reference_tracer::gpu::GpuTracer::new(GpuContext::new().unwrap(), &prepared.scene, &integrator, Some(&grid))
@@ -266,9 +261,8 @@ fn a_gpu_learned_guide_saves_loads_and_guides_the_cpu_tracer() {
     assert!(loaded.validate().is_ok());
     assert_eq!(loaded.to_bytes(), bytes, "the GPU's learned state round-trips exactly");
     // The CPU tracer renders with it, learning nothing more, and stays unbiased.
-    let lights = LightRequest::new(Some(LightSelection::Power), Some(EnvironmentSampling::Luminance), true);
-    let mut prepared =
-        prepare_with_lights(&scene, IntersectorChoice::default(), Some(hemisphere(300)), lights).unwrap();
+    let guide = Some(hemisphere(300));
+    let mut prepared = prepare_with_lights(&scene, IntersectorChoice::default(), guide, power_lights()).unwrap();
     prepared.guide = Some(reference_tracer::directional_guide::DirectionalGuide::Hemisphere(Box::new(loaded)));
     let integrator = IntegratorSettings { method: Method::GuidedNee, learn: false, ..Default::default() };
     let settings = RenderSettings { integrator, budget: Budget::SamplesPerPixel(96), seed: 32, train_seconds: 0.0 };

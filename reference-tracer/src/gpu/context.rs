@@ -1,4 +1,4 @@
-//! The device the GPU tracer runs on: a wgpu instance limited to Vulkan, its adapter,
+//! The device the GPU tracer runs on: a wgpu instance over the primary backends, its adapter,
 //! device and queue, errors collected instead of panicking, and blocking read-backs.
 
 use std::sync::{Arc, Mutex};
@@ -17,18 +17,21 @@ pub struct GpuContext {
 }
 
 impl GpuContext {
-    /// Opens the first Vulkan adapter (a hardware GPU if there is one, else lavapipe),
-    /// with the adapter's own limits. Errors say what is missing.
+    /// Opens the best adapter of the platform's primary backends (Vulkan, Metal, DX12):
+    /// a hardware GPU if there is one, else a software one such as lavapipe, with the
+    /// adapter's own limits. Errors say what is missing.
     pub fn new() -> Result<Self, String> {
         let mut descriptor = wgpu::InstanceDescriptor::new_without_display_handle();
-        descriptor.backends = wgpu::Backends::VULKAN;
+        descriptor.backends = wgpu::Backends::PRIMARY;
         let instance = wgpu::Instance::new(descriptor);
         let options = wgpu::RequestAdapterOptions {
             power_preference: wgpu::PowerPreference::HighPerformance,
             ..Default::default()
         };
         let adapter = pollster::block_on(instance.request_adapter(&options)).map_err(|e| {
-            format!("no Vulkan adapter ({e}); install a driver, e.g. Mesa's lavapipe with scripts/provision-vulkan.sh")
+            format!(
+                "no GPU adapter ({e}); install a Vulkan driver, e.g. Mesa's lavapipe with scripts/provision-vulkan.sh"
+            )
         })?;
         let limits = adapter.limits();
         let descriptor = wgpu::DeviceDescriptor {

@@ -1,5 +1,5 @@
 //! The GPU tracer (feature `gpu`): the same estimators as the CPU tracer as one wgpu
-//! compute shader (`tracer.wgsl`), on any Vulkan adapter — in CI, Mesa's software
+//! compute shader (`tracer.wgsl`), on any Vulkan, Metal or DX12 adapter — in CI, Mesa's software
 //! rasteriser lavapipe.
 //!
 //! Design: a megakernel — one invocation traces one pixel's whole path per pass, in
@@ -49,7 +49,7 @@ use scene_buffers::SceneBuffers;
 use crate::environment::Sky;
 use crate::integrator::{IntegratorSettings, Method, PathCounters};
 use crate::output::Image;
-use crate::render::{Budget, Progress, RenderSettings, RenderStatistics};
+use crate::render::{pass_seed, Progress, RenderSettings, RenderStatistics};
 use crate::scene::Scene;
 
 /// The uniform block of `tracer.wgsl` (its `Params`).
@@ -359,8 +359,7 @@ impl GpuTracer {
         let start = Instant::now();
         loop {
             let pass = statistics.passes;
-            let pass_seed = settings.seed ^ (pass as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15);
-            let (image, counters) = self.trace_pass(pass, pass_seed)?;
+            let (image, counters) = self.trace_pass(pass, pass_seed(settings.seed, pass))?;
             let mut sum = [0.0f64; 3];
             for (pixel, value) in film.iter_mut().zip(&image) {
                 for c in 0..3 {
@@ -370,16 +369,10 @@ impl GpuTracer {
                     sum[c] += v;
                 }
             }
-            statistics.pass_means.push(sum.map(|s| s / (width * height) as f64));
-            statistics.counters = statistics.counters + counters;
-            statistics.passes += 1;
+            statistics.add_pass(sum, width * height, counters);
             let seconds = start.elapsed().as_secs_f64();
             on_pass(&Progress { passes: statistics.passes, seconds, film: &film, counters: statistics.counters });
-            let done = match settings.budget {
-                Budget::SamplesPerPixel(spp) => statistics.passes >= spp,
-                Budget::Seconds(limit) => seconds >= limit,
-            };
-            if done {
+            if settings.budget.reached(statistics.passes, seconds) {
                 statistics.render_seconds = seconds;
                 break;
             }

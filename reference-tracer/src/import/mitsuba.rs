@@ -652,14 +652,7 @@ impl<'input> Reader<'_, 'input> {
 
     /// A variant of `material` that emits `radiance` from its front.
     fn emissive(&mut self, material: &str, radiance: [f32; 3], line: usize) -> String {
-        let mut emitting = self.materials[material].clone();
-        match &mut emitting {
-            MaterialDescription::Diffuse { emission, .. }
-            | MaterialDescription::Conductor { emission, .. }
-            | MaterialDescription::Dielectric { emission, .. }
-            | MaterialDescription::ThinDielectric { emission, .. }
-            | MaterialDescription::Plastic { emission, .. } => *emission = Some(radiance),
-        }
+        let emitting = self.materials[material].emitting(radiance);
         let name = format!("emitter-line-{line}");
         self.materials.insert(name.clone(), emitting);
         name

@@ -896,14 +896,7 @@ impl Reader {
         if let Some(name) = self.emissive_variants.get(&key) {
             return Ok(name.clone());
         }
-        let mut emitting = self.description.materials[material].clone();
-        match &mut emitting {
-            MaterialDescription::Diffuse { emission, .. }
-            | MaterialDescription::Conductor { emission, .. }
-            | MaterialDescription::Dielectric { emission, .. }
-            | MaterialDescription::ThinDielectric { emission, .. }
-            | MaterialDescription::Plastic { emission, .. } => *emission = Some(radiance),
-        }
+        let emitting = self.description.materials[material].emitting(radiance);
         let name = format!("{material} (emitting, line {line})");
         self.description.materials.insert(name.clone(), emitting);
         self.emissive_variants.insert(key, name.clone());

@@ -189,6 +189,21 @@ pub enum MaterialDescription {
     },
 }
 
+impl MaterialDescription {
+    /// The same material emitting `radiance` from its front face (an area light).
+    pub fn emitting(&self, radiance: [f32; 3]) -> Self {
+        let mut emitting = self.clone();
+        match &mut emitting {
+            MaterialDescription::Diffuse { emission, .. }
+            | MaterialDescription::Conductor { emission, .. }
+            | MaterialDescription::Dielectric { emission, .. }
+            | MaterialDescription::ThinDielectric { emission, .. }
+            | MaterialDescription::Plastic { emission, .. } => *emission = Some(radiance),
+        }
+        emitting
+    }
+}
+
 /// A piece of geometry with one material.
 #[derive(Clone, Debug, Deserialize, Serialize)]
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
