@@ -77,6 +77,13 @@ impl CellGrid {
         self.resolution.to_array().map(|n| n as u32)
     }
 
+    /// The box's low corner and the cells per unit length along each axis: cell
+    /// coordinates are `(position - low) * inverse_cell_size`.
+    #[cfg_attr(not(feature = "volume"), allow(dead_code))]
+    pub(crate) fn transform(&self) -> (Vec3, Vec3) {
+        (self.low, self.inverse_cell_size)
+    }
+
     /// Number of cells.
     pub(crate) fn cell_count(&self) -> usize {
         (self.resolution.x * self.resolution.y * self.resolution.z) as usize

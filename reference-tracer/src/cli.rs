@@ -590,23 +590,31 @@ impl Prepared {
         settings: &RenderSettings,
         on_pass: impl FnMut(&Progress<'_>),
     ) -> Result<(Image, RenderStatistics), String> {
-        let grid = match self.guide.as_mut() {
-            Some(DirectionalGuide::Hemisphere(grid)) if settings.integrator.method.uses_guide() => Some(grid.as_mut()),
-            Some(_) if settings.integrator.method.uses_guide() => {
-                return Err("the GPU tracer guides with a hemisphere grid only (--guide hemisphere)".into())
-            }
-            _ => None,
-        };
+        use crate::gpu::GpuGuide;
+        let guide = self.guide.as_mut().filter(|_| settings.integrator.method.uses_guide());
+        if matches!(guide, Some(DirectionalGuide::Mixture(_))) {
+            return Err(
+                "the GPU tracer guides with a hemisphere grid or an irradiance volume (--guide hemisphere|volume)"
+                    .into(),
+            );
+        }
         if self.gpu.is_none() {
             let context = crate::gpu::GpuContext::new()?;
             eprintln!("gpu: {}", context.describe());
-            let tracer = crate::gpu::GpuTracer::new(context, &self.scene, &settings.integrator, grid.as_deref())?;
+            let uploaded = match guide.as_deref() {
+                Some(DirectionalGuide::Hemisphere(grid)) => Some(GpuGuide::Hemisphere(grid)),
+                Some(DirectionalGuide::Volume(volume)) => Some(GpuGuide::Volume(volume)),
+                _ => None,
+            };
+            let tracer = crate::gpu::GpuTracer::new(context, &self.scene, &settings.integrator, uploaded)?;
             self.gpu = Some(tracer);
         }
         let gpu = self.gpu.as_mut().ok_or("no GPU tracer")?;
         let result = gpu.render(settings, on_pass)?;
-        if let Some(grid) = grid {
-            gpu.download_guide(grid)?;
+        match guide {
+            Some(DirectionalGuide::Hemisphere(grid)) => gpu.download_guide(grid)?,
+            Some(DirectionalGuide::Volume(volume)) => gpu.download_volume(volume)?,
+            _ => {}
         }
         Ok(result)
     }

@@ -191,17 +191,21 @@ fn the_gpu_sampler_matches_guiding_cores_pdf() {
     let (_, grid) = render_guided(&scene, Device::Cpu, Method::GuidedNee, 16, 5, 200);
     let prepared = prepare_with_lights(&scene, IntersectorChoice::default(), None, power_lights()).unwrap();
     let integrator = IntegratorSettings { method: Method::GuidedNee, ..Default::default() };
-    let mut gpu =
-        reference_tracer::gpu::GpuTracer::new(GpuContext::new().unwrap(), &prepared.scene, &integrator, Some(&grid))
-            .unwrap();
+    let mut gpu = reference_tracer::gpu::GpuTracer::new(
+        GpuContext::new().unwrap(),
+        &prepared.scene,
+        &integrator,
+        Some((&grid).into()),
+    )
+    .unwrap();
     // The most-visited probe has the least uniform distribution.
     let visits = grid.probe_visit_counts();
     let probe = (0..grid.probe_count()).max_by_key(|&p| visits[p].load(std::sync::atomic::Ordering::Relaxed)).unwrap();
     let settings = ChiSquareSettings::default();
-    let samples = gpu.sample_guide(probe as u32, settings.samples, 17).unwrap();
+    let normal = grid.probe_normals()[probe];
+    let samples = gpu.sample_guide(probe as u32, normal, settings.samples, 17).unwrap();
     let region = guiding_core::ProbeId(probe as u32);
     let distribution = GpuSamples { samples, next: std::cell::Cell::new(0), cpu: grid.distribution(region) };
-    let normal = grid.probe_normals()[probe];
     let report = chi_square_test(&distribution, normal, &settings);
     eprintln!("GPU sampler, probe {probe}: {report:?}");
     assert!(report.passes(0.01), "{report:?}");
@@ -270,6 +274,176 @@ fn a_gpu_learned_guide_saves_loads_and_guides_the_cpu_tracer() {
     let (_, nee) = render(&scene, Device::Cpu, Method::Nee, 192, 33);
     support::assert_agree(
         "cpu guided-nee with the GPU's guide vs nee",
+        &support::mean_estimate(&guided),
+        &support::mean_estimate(&nee),
+    );
+}
+
+// ---------------------------------------------------------------------------------
+// The irradiance volume on the GPU.
+
+use guiding_core::{IrradianceVolume, IrradianceVolumeSettings, VolumeRegion};
+use reference_tracer::directional_guide::DirectionalGuide;
+
+/// A volume of `budget_kib` KiB whose leaves split after `split` updates per patch.
+fn volume(budget_kib: usize, split: f32) -> IrradianceVolumeSettings {
+    IrradianceVolumeSettings { budget_bytes: budget_kib << 10, split_updates_per_patch: split, ..Default::default() }
+}
+
+/// Renders `scene` with a fresh irradiance volume on `device`; returns the render and
+/// the volume it learned.
+fn render_with_volume(
+    scene: &Path,
+    device: Device,
+    method: Method,
+    spp: u32,
+    seed: u64,
+    settings: IrradianceVolumeSettings,
+) -> (RenderStatistics, IrradianceVolume) {
+    let (integrator, lights) = (integrator(method), power_lights());
+    let mut prepared = prepare_with_lights(scene, IntersectorChoice::default(), Some(settings.into()), lights).unwrap();
+    prepared.device = device;
+    let settings = RenderSettings { integrator, budget: Budget::SamplesPerPixel(spp), seed, train_seconds: 0.0 };
+    let (_, statistics) = prepared.render(&settings, |_| {}).unwrap();
+    let Some(DirectionalGuide::Volume(volume)) = prepared.guide else { panic!("a volume was built") };
+    (statistics, volume)
+}
+
+#[test]
+fn the_volume_guides_on_the_gpu_without_bias_and_splits_like_the_cpu() {
+    if !adapter_available("volume") {
+        return;
+    }
+    for (name, width, height, spp) in [("cornell", 32, 32, 96), ("door", 32, 24, 256)] {
+        let scene = support::repository_scene(name, width, height);
+        let (_, nee) = render(&scene, Device::Cpu, Method::Nee, spp * 2, 41);
+        let reference = support::mean_estimate(&nee);
+        let settings = volume(256, 8.0);
+        let fresh = prepare_with_lights(&scene, IntersectorChoice::default(), Some(settings.into()), power_lights());
+        let Some(DirectionalGuide::Volume(fresh)) = fresh.unwrap().guide else { panic!("a volume was built") };
+        let initial_leaves = fresh.leaf_count();
+        for method in [Method::GuidedNee, Method::Guided] {
+            let spp = if method == Method::Guided { spp * 4 } else { spp };
+            let (statistics, gpu) = render_with_volume(&scene, Device::Gpu, method, spp, 43, settings);
+            let (_, cpu) = render_with_volume(&scene, Device::Cpu, method, spp, 44, settings);
+            let label = format!("{name} gpu:{} with a volume vs cpu nee", method.name());
+            support::assert_agree(&label, &support::mean_estimate(&statistics), &reference);
+            assert!(gpu.validate().is_ok(), "{label}");
+            assert!(gpu.memory_bytes() <= settings.budget_bytes, "{label}: {} bytes", gpu.memory_bytes());
+            // Leaves split on the host between GPU passes, as many as on the CPU.
+            let (g, c) = (gpu.leaf_count(), cpu.leaf_count());
+            eprintln!("{label}: leaves GPU {g}, CPU {c} (from {initial_leaves})");
+            assert!(g > initial_leaves, "{label}: no leaf split");
+            assert!((g as f64 / c as f64 - 1.0).abs() < 0.1, "{label}: leaves GPU {g} vs CPU {c}");
+            let ratio = gpu.stats().accepted_updates as f64 / cpu.stats().accepted_updates as f64;
+            assert!((ratio - 1.0).abs() < 0.05, "{label}: updates GPU/CPU {ratio}");
+        }
+    }
+}
+
+/// Directions drawn on the GPU from a volume leaf, replayed with guiding-core's pdf.
+struct GpuVolumeSamples<'a> {
+    samples: Vec<[f32; 4]>,
+    next: std::cell::Cell<usize>,
+    cpu: guiding_core::volume::VolumeDistribution<'a>,
+}
+
+impl guiding_core::DirectionalDistribution for GpuVolumeSamples<'_> {
+    fn sample(&self, _u: glam::Vec2) -> guiding_core::DirectionSample {
+        let [x, y, z, pdf] = self.samples[self.next.get() % self.samples.len()];
+        self.next.set(self.next.get() + 1);
+        guiding_core::DirectionSample { direction: glam::Vec3::new(x, y, z), pdf }
+    }
+
+    fn pdf(&self, direction: glam::Vec3) -> f32 {
+        self.cpu.pdf(direction)
+    }
+}
+
+#[test]
+fn the_gpu_volume_sampler_matches_guiding_cores_folded_pdf() {
+    if !adapter_available("volume sampler") {
+        return;
+    }
+    use guiding_core::validation::{chi_square_test, ChiSquareSettings};
+    let scene = support::repository_scene("cornell", 24, 24);
+    let (_, learned) = render_with_volume(&scene, Device::Cpu, Method::GuidedNee, 16, 45, volume(256, 8.0));
+    let prepared = prepare_with_lights(&scene, IntersectorChoice::default(), None, power_lights()).unwrap();
+    let integrator = IntegratorSettings { method: Method::GuidedNee, ..Default::default() };
+    let mut gpu = reference_tracer::gpu::GpuTracer::new(
+        GpuContext::new().unwrap(),
+        &prepared.scene,
+        &integrator,
+        Some((&learned).into()),
+    )
+    .unwrap();
+    let visits = learned.leaf_visit_counts();
+    let leaf = (0..learned.leaf_count()).max_by_key(|&l| visits[l].load(std::sync::atomic::Ordering::Relaxed)).unwrap();
+    // Folded about a normal off every axis, so both halves of the sphere contribute.
+    let normal = glam::Vec3::new(0.3, 0.8, -0.52).normalize();
+    let settings = ChiSquareSettings::default();
+    let samples = gpu.sample_guide(leaf as u32, normal, settings.samples, 19).unwrap();
+    let region = VolumeRegion { leaf: leaf as u32, normal };
+    let cpu = learned.distribution(region);
+    for s in samples.iter().take(1000) {
+        let direction = glam::Vec3::new(s[0], s[1], s[2]);
+        let expected = guiding_core::DirectionalDistribution::pdf(&cpu, direction);
+        assert!((s[3] - expected).abs() <= 1e-3 * expected, "GPU pdf {} vs CPU {expected}", s[3]);
+    }
+    let distribution = GpuVolumeSamples { samples, next: std::cell::Cell::new(0), cpu };
+    let report = chi_square_test(&distribution, normal, &settings);
+    eprintln!("GPU volume sampler, leaf {leaf}: {report:?}");
+    assert!(report.passes(0.01), "{report:?}");
+}
+
+/// Σ_k Q_k of each leaf visited more than 200 times in both volumes, as pairs.
+fn leaf_totals(a: &IrradianceVolume, b: &IrradianceVolume) -> Vec<(f64, f64)> {
+    let n = a.patch_count();
+    let total = |v: &IrradianceVolume, leaf: usize| -> f64 { (0..n).map(|k| v.q(leaf as u32, k) as f64).sum() };
+    let visits =
+        |v: &IrradianceVolume, leaf: usize| v.leaf_visit_counts()[leaf].load(std::sync::atomic::Ordering::Relaxed);
+    (0..a.leaf_count())
+        .filter(|&l| visits(a, l) > 200 && visits(b, l) > 200)
+        .map(|l| (total(a, l), total(b, l)))
+        .collect()
+}
+
+fn volume_difference(a: &IrradianceVolume, b: &IrradianceVolume) -> f64 {
+    let pairs = leaf_totals(a, b);
+    assert!(pairs.len() > 20, "too few leaves learned: {}", pairs.len());
+    pairs.iter().map(|(x, y)| ((x - y) / (0.5 * (x + y))).powi(2)).sum::<f64>() / pairs.len() as f64
+}
+
+#[test]
+fn gpu_and_cpu_learn_the_same_volume_tables() {
+    if !adapter_available("volume learning") {
+        return;
+    }
+    // No splitting, so both keep the same leaves and the tables compare one to one.
+    let settings = volume(512, 1e9);
+    let scene = support::repository_scene("cornell", 32, 32);
+    let (_, cpu) = render_with_volume(&scene, Device::Cpu, Method::GuidedNee, 48, 51, settings);
+    let (_, cpu_again) = render_with_volume(&scene, Device::Cpu, Method::GuidedNee, 48, 52, settings);
+    let (_, gpu) = render_with_volume(&scene, Device::Gpu, Method::GuidedNee, 48, 53, settings);
+    assert_eq!(gpu.nodes(), cpu.nodes());
+    let noise = volume_difference(&cpu_again, &cpu);
+    let between = volume_difference(&gpu, &cpu);
+    eprintln!("per-leaf Q totals: GPU vs CPU {between:.4e}, CPU vs CPU {noise:.4e}");
+    assert!(between <= 2.0 * noise + 1e-6, "GPU vs CPU {between} against CPU vs CPU {noise}");
+    // The GPU's volume saves, loads and renders on the CPU without bias.
+    let bytes = gpu.to_bytes();
+    let loaded = IrradianceVolume::from_bytes(&bytes).unwrap();
+    assert_eq!(loaded.to_bytes(), bytes, "the GPU's learned volume round-trips exactly");
+    let mut prepared =
+        prepare_with_lights(&scene, IntersectorChoice::default(), Some(settings.into()), power_lights()).unwrap();
+    prepared.guide = Some(DirectionalGuide::Volume(loaded));
+    let integrator = IntegratorSettings { method: Method::GuidedNee, learn: false, ..Default::default() };
+    let render_settings =
+        RenderSettings { integrator, budget: Budget::SamplesPerPixel(96), seed: 54, train_seconds: 0.0 };
+    let (_, guided) = prepared.render(&render_settings, |_| {}).unwrap();
+    let (_, nee) = render(&scene, Device::Cpu, Method::Nee, 192, 55);
+    support::assert_agree(
+        "cpu guided-nee with the GPU's volume vs nee",
         &support::mean_estimate(&guided),
         &support::mean_estimate(&nee),
     );

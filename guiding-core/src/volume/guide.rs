@@ -259,6 +259,53 @@ impl IrradianceVolume {
         &self.q
     }
 
+    /// Per patch of every leaf, the updates it took (leaf after leaf).
+    pub fn patch_visit_counts(&self) -> &[AtomicU32] {
+        &self.patch_visits
+    }
+
+    /// Per leaf, the updates it took since it was made (splitting shares a parent's
+    /// count among its children).
+    pub fn leaf_visit_counts(&self) -> &[AtomicU32] {
+        &self.leaf_visits
+    }
+
+    /// The tree: the initial grid's cells first (x fastest, then y, then z), then every
+    /// split's eight children in a row, ordered by octant (bit 0 x, bit 1 y, bit 2 z set
+    /// for the upper half). An entry with [`LEAF_BIT`](Self::LEAF_BIT) set is a leaf and
+    /// its low bits are the leaf's index; any other is the index of its first child.
+    pub fn nodes(&self) -> &[u32] {
+        &self.nodes
+    }
+
+    /// Marks a [`nodes`](Self::nodes) entry as a leaf.
+    pub const LEAF_BIT: u32 = LEAF;
+
+    /// The initial grid's low corner and its cells per unit length along each axis: a
+    /// point's cell coordinates are `(position - low) * inverse_cell_size`, clamped to
+    /// the grid.
+    pub fn grid_transform(&self) -> (Vec3, Vec3) {
+        self.grid.transform()
+    }
+
+    /// Every leaf's sampling CDF over its patches, as of the last rebuild (leaf after
+    /// leaf; guiding-core's [`cdf`](crate::cdf) layout).
+    pub fn cdf(&self) -> &[f32] {
+        &self.cdf
+    }
+
+    /// Per leaf, its Q at the last rebuild projected on the nine real spherical
+    /// harmonics of order ≤ 2 (radiance × sr): the Lambertian integral's source.
+    pub fn irradiance_coefficients(&self) -> &[[f32; 9]] {
+        &self.irradiance
+    }
+
+    /// Per patch, ∫ Y_lm dω over it (sr), shared by every leaf's projection: the
+    /// projection is L_lm = Σ_patches Q·these.
+    pub fn patch_basis_integrals(&self) -> &[[f32; 9]] {
+        &self.patch_basis
+    }
+
     /// Overwrites a leaf's Q table (clamped to `[q_floor, f32::MAX]`, non-finite values
     /// to the floor); takes effect at the next rebuild.
     pub fn set_q_values(&mut self, leaf: u32, values: &[f32]) {
@@ -323,9 +370,14 @@ impl IrradianceVolume {
         }
     }
 
-    /// Splits the leaves that took enough updates, most-updated first, while the budget
-    /// holds the seven new leaves and eight nodes each split adds.
-    fn split_busy_leaves(&mut self) {
+    /// The bytes one split adds: seven new leaves and eight nodes.
+    fn split_bytes(&self) -> usize {
+        7 * self.settings.bytes_per_leaf() + 8 * BYTES_PER_NODE
+    }
+
+    /// The leaves the next rebuild splits, as (visits, node) pairs, most-updated first:
+    /// those that took enough updates, as many as the budget holds.
+    fn busy_leaves(&self) -> Vec<(u32, u32)> {
         let patches = self.patch_count();
         let threshold = (self.settings.split_updates_per_patch as f64 * patches as f64) as u64;
         let mut busy: Vec<(u32, u32)> = Vec::new();
@@ -338,12 +390,33 @@ impl IrradianceVolume {
             }
         }
         if busy.is_empty() {
-            return;
+            return busy;
         }
         busy.sort_unstable_by(|a, b| b.0.cmp(&a.0).then(a.1.cmp(&b.1)));
-        let split_bytes = 7 * self.settings.bytes_per_leaf() + 8 * BYTES_PER_NODE;
-        let room = self.settings.budget_bytes.saturating_sub(self.memory_bytes()) / split_bytes;
+        let room = self.settings.budget_bytes.saturating_sub(self.memory_bytes()) / self.split_bytes();
         busy.truncate(room);
+        busy
+    }
+
+    /// Whether the next [`rebuild_sampling`](Guide::rebuild_sampling) splits a leaf
+    /// (given the visit counts as they stand). A tracer that learns elsewhere (a GPU)
+    /// asks this between passes and brings the tables home only when it does.
+    pub fn splits_pending(&self) -> bool {
+        !self.busy_leaves().is_empty()
+    }
+
+    /// The most leaves and tree nodes splitting can reach within the budget: what a
+    /// copy of the tables elsewhere must hold room for.
+    pub fn capacity(&self) -> (usize, usize) {
+        let splits = self.settings.budget_bytes.saturating_sub(self.memory_bytes()) / self.split_bytes();
+        (self.leaf_count() + 7 * splits, self.node_count() + 8 * splits)
+    }
+
+    /// Splits the leaves that took enough updates, most-updated first, while the budget
+    /// holds the seven new leaves and eight nodes each split adds.
+    fn split_busy_leaves(&mut self) {
+        let patches = self.patch_count();
+        let busy = self.busy_leaves();
         if busy.is_empty() {
             return;
         }
@@ -382,6 +455,15 @@ impl IrradianceVolume {
             }
             self.visits_at_build[parent as usize] = u32::MAX;
         }
+    }
+}
+
+impl Clone for IrradianceVolume {
+    fn clone(&self) -> Self {
+        let mut copy = Self::assemble(self.low, self.high, self.settings, self.grid, self.state());
+        // Leaves that changed since their last build stay due for one.
+        copy.visits_at_build.clone_from(&self.visits_at_build);
+        copy
     }
 }
 
@@ -557,6 +639,35 @@ mod tests {
         // A far corner nobody visited kept one leaf.
         let far = guide.locate(Vec3::new(1.9, 0.9, 0.9), Vec3::Y).unwrap();
         assert_eq!(guide.q(far.leaf, x), guide.settings().initial_q);
+    }
+
+    #[test]
+    fn splits_pending_foretells_the_rebuild_and_capacity_bounds_the_growth() {
+        let mut guide = volume(160 << 10);
+        let (max_leaves, max_nodes) = guide.capacity();
+        assert!(max_leaves > guide.leaf_count() && max_nodes > guide.node_count());
+        let mut rng = Pcg32::new(7, 7);
+        let mut splits = 0;
+        for _ in 0..10 {
+            assert!(!guide.splits_pending() || guide.capacity().0 > guide.leaf_count());
+            for _ in 0..30_000 {
+                let p = Vec3::new(0.2, 0.2, 0.2) + 0.1 * Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+                let region = guide.locate(p, Vec3::Y).unwrap();
+                let d = guide.sample(region, rng.next_vec2()).direction;
+                guide.update(region, d, 1.0);
+            }
+            let (pending, leaves) = (guide.splits_pending(), guide.leaf_count());
+            let copy = guide.clone();
+            guide.rebuild_sampling();
+            assert_eq!(pending, guide.leaf_count() > leaves);
+            splits += pending as u32;
+            assert!(guide.leaf_count() <= max_leaves && guide.node_count() <= max_nodes);
+            // A clone rebuilds to the same state as the original.
+            let mut copy = copy;
+            copy.rebuild_sampling();
+            assert_eq!(copy.to_bytes(), guide.to_bytes());
+        }
+        assert!(splits > 0, "no leaf split");
     }
 
     #[test]

@@ -1,107 +1,217 @@
-//! A [`HemisphereGrid`] on the GPU: its flat arrays uploaded as they are (f32 positions
-//! and normals, Q as f32 bits, visit counts, CDF, Lambertian sums, the hash grid's bucket
-//! table), updated in place by the shader, and read back into the same grid.
+//! A directional guide on the GPU: a [`HemisphereGrid`]'s or an [`IrradianceVolume`]'s
+//! flat arrays uploaded as they are (f32 positions and normals, Q as f32 bits, visit
+//! counts, CDF, Lambertian sums or spherical-harmonic coefficients, the hash grid's
+//! bucket table or the octree's nodes), updated in place by the shader, and read back
+//! into the same structure.
 
-use std::sync::atomic::Ordering;
+use std::sync::atomic::{AtomicU32, Ordering};
 
-use guiding_core::{HemisphereGrid, HemisphereMapping, LearningRate};
+use guiding_core::{Guide, HemisphereGrid, HemisphereMapping, IrradianceVolume, LearningRate};
 use wgpu::util::DeviceExt;
 
-/// What the GPU guide cannot do with `grid`'s settings, if anything.
-pub fn unsupported(grid: &HemisphereGrid) -> Option<String> {
-    let settings = grid.settings();
-    if settings.layout.mapping != HemisphereMapping::Cylindrical {
-        return Some("the concentric patch layout (use --mapping cylindrical)".into());
+/// The structure the GPU guides with.
+#[derive(Clone, Copy)]
+pub enum GpuGuide<'a> {
+    /// Probes with hemispheres of patches.
+    Hemisphere(&'a HemisphereGrid),
+    /// Octree leaves with full-sphere tables (splitting runs on the host between passes).
+    Volume(&'a IrradianceVolume),
+}
+
+impl<'a> From<&'a HemisphereGrid> for GpuGuide<'a> {
+    fn from(grid: &'a HemisphereGrid) -> Self {
+        GpuGuide::Hemisphere(grid)
     }
-    if settings.sampling_exponent != 1.0 {
-        return Some("a sampling exponent other than 1".into());
+}
+
+impl<'a> From<&'a IrradianceVolume> for GpuGuide<'a> {
+    fn from(volume: &'a IrradianceVolume) -> Self {
+        GpuGuide::Volume(volume)
     }
-    if matches!(settings.update_rule.learning_rate, LearningRate::Global { .. }) {
+}
+
+/// What the GPU guide cannot do with `guide`'s settings, if anything.
+pub fn unsupported(guide: GpuGuide<'_>) -> Option<String> {
+    let rate = match guide {
+        GpuGuide::Hemisphere(grid) => {
+            let settings = grid.settings();
+            if settings.layout.mapping != HemisphereMapping::Cylindrical {
+                return Some("the concentric patch layout (use --mapping cylindrical)".into());
+            }
+            if settings.sampling_exponent != 1.0 {
+                return Some("a sampling exponent other than 1".into());
+            }
+            settings.update_rule.learning_rate
+        }
+        GpuGuide::Volume(volume) => volume.settings().update_rule.learning_rate,
+    };
+    if matches!(rate, LearningRate::Global { .. }) {
         return Some("the global learning rate".into());
     }
     None
 }
 
-/// The grid's buffers on a device.
+/// The guide's buffers on a device. Bindings cannot be zero-sized, so an empty array
+/// (or no guide) uploads one element; a volume's arrays have room for every leaf and
+/// node its budget allows.
 pub struct GuideBuffers {
     pub positions: wgpu::Buffer,
     pub normals: wgpu::Buffer,
-    pub bucket_starts: wgpu::Buffer,
+    /// The grid's bucket starts, or the volume's nodes.
+    pub index_table: wgpu::Buffer,
     pub q: wgpu::Buffer,
     pub patch_visits: wgpu::Buffer,
-    pub probe_visits: wgpu::Buffer,
+    /// Per probe or leaf.
+    pub region_visits: wgpu::Buffer,
     pub cdf: wgpu::Buffer,
-    pub lambertian_sums: wgpu::Buffer,
-    pub patch_cos_integrals: wgpu::Buffer,
+    /// The grid's Lambertian sums, or the volume's nine coefficients per leaf.
+    pub integral_terms: wgpu::Buffer,
+    /// The grid's per-patch ∫cos, or the volume's nine ∫Y_lm per patch.
+    pub patch_weights: wgpu::Buffer,
     pub built_visits: wgpu::Buffer,
 }
 
-fn bits(words: &[std::sync::atomic::AtomicU32]) -> Vec<u32> {
+fn bits(words: &[AtomicU32]) -> Vec<u32> {
     words.iter().map(|w| w.load(Ordering::Relaxed)).collect()
 }
 
-/// One element where an array would be empty: bindings cannot be zero-sized.
-fn padded<T: Default + Clone>(values: &[T]) -> Vec<T> {
-    if values.is_empty() {
-        vec![T::default()]
-    } else {
-        values.to_vec()
-    }
+/// `values` zero-padded to `length` (at least one element).
+fn padded<T: Default + Clone>(values: &[T], length: usize) -> Vec<T> {
+    let mut padded = values.to_vec();
+    padded.resize(length.max(values.len()).max(1), T::default());
+    padded
 }
 
 const READ_WRITE: wgpu::BufferUsages =
     wgpu::BufferUsages::STORAGE.union(wgpu::BufferUsages::COPY_SRC).union(wgpu::BufferUsages::COPY_DST);
 
+/// The arrays of one structure, as uploaded.
+struct Arrays {
+    positions: Vec<f32>,
+    normals: Vec<f32>,
+    index_table: Vec<u32>,
+    q: Vec<u32>,
+    patch_visits: Vec<u32>,
+    region_visits: Vec<u32>,
+    cdf: Vec<f32>,
+    integral_terms: Vec<u32>,
+    patch_weights: Vec<f32>,
+}
+
+impl Arrays {
+    fn of_grid(g: &HemisphereGrid) -> Self {
+        let floats = |values: &[glam::Vec3]| values.iter().flat_map(|v| v.to_array()).collect::<Vec<f32>>();
+        Self {
+            positions: floats(g.probe_positions()),
+            normals: floats(g.probe_normals()),
+            index_table: g.lookup().bucket_starts().to_vec(),
+            q: bits(g.q_values()),
+            patch_visits: bits(g.visit_counts()),
+            region_visits: bits(g.probe_visit_counts()),
+            cdf: g.cdf().to_vec(),
+            integral_terms: bits(g.lambertian_sums()),
+            patch_weights: g.patch_cos_integrals().to_vec(),
+        }
+    }
+
+    /// A volume's arrays, padded to its capacity.
+    fn of_volume(v: &IrradianceVolume) -> Self {
+        let (leaves, nodes) = v.capacity();
+        let patches = v.patch_count();
+        let flat = |values: &[[f32; 9]]| values.iter().flatten().map(|c| c.to_bits()).collect::<Vec<u32>>();
+        Self {
+            positions: vec![0.0],
+            normals: vec![0.0],
+            index_table: padded(v.nodes(), nodes),
+            q: padded(&bits(v.q_values()), leaves * patches),
+            patch_visits: padded(&bits(v.patch_visit_counts()), leaves * patches),
+            region_visits: padded(&bits(v.leaf_visit_counts()), leaves),
+            cdf: padded(v.cdf(), leaves * patches),
+            integral_terms: padded(&flat(v.irradiance_coefficients()), leaves * 9),
+            patch_weights: v.patch_basis_integrals().iter().flatten().copied().collect(),
+        }
+    }
+
+    fn empty() -> Self {
+        Self {
+            positions: vec![0.0],
+            normals: vec![0.0],
+            index_table: vec![0, 0],
+            q: vec![0],
+            patch_visits: vec![0],
+            region_visits: vec![0],
+            cdf: vec![0.0],
+            integral_terms: vec![0],
+            patch_weights: vec![0.0],
+        }
+    }
+}
+
 impl GuideBuffers {
-    /// Uploads `grid`, or one-element placeholders for unguided renders.
-    pub fn new(device: &wgpu::Device, grid: Option<&HemisphereGrid>) -> Self {
+    /// Uploads `guide`, or one-element placeholders for unguided renders.
+    pub fn new(device: &wgpu::Device, guide: Option<GpuGuide<'_>>) -> Self {
+        let arrays = match guide {
+            Some(GpuGuide::Hemisphere(grid)) => Arrays::of_grid(grid),
+            Some(GpuGuide::Volume(volume)) => Arrays::of_volume(volume),
+            None => Arrays::empty(),
+        };
         let buffer = |label: &str, bytes: &[u8], usage: wgpu::BufferUsages| {
             device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents: bytes, usage })
         };
         let read = wgpu::BufferUsages::STORAGE;
-        let floats = |values: &[glam::Vec3]| padded(&values.iter().flat_map(|v| v.to_array()).collect::<Vec<f32>>());
-        let (positions, normals, buckets, q, patch_visits, probe_visits, cdf, sums, cosines) = match grid {
-            Some(g) => (
-                floats(g.probe_positions()),
-                floats(g.probe_normals()),
-                padded(g.lookup().bucket_starts()),
-                padded(&bits(g.q_values())),
-                padded(&bits(g.visit_counts())),
-                padded(&bits(g.probe_visit_counts())),
-                padded(g.cdf()),
-                padded(&bits(g.lambertian_sums())),
-                padded(g.patch_cos_integrals()),
-            ),
-            None => (vec![0.0], vec![0.0], vec![0, 0], vec![0], vec![0], vec![0], vec![0.0], vec![0], vec![0.0]),
-        };
-        // The CDFs uploaded are current: rebuild only what the first pass changes.
-        let built = probe_visits.clone();
+        // The volume's tree grows when leaves split: the host rewrites it.
+        let index_usage = read | wgpu::BufferUsages::COPY_DST;
+        let a = &arrays;
+        let one = |values: &[u32]| padded(values, 1);
         Self {
-            positions: buffer("probe positions", bytemuck::cast_slice(&positions), read),
-            normals: buffer("probe normals", bytemuck::cast_slice(&normals), read),
-            bucket_starts: buffer("bucket starts", bytemuck::cast_slice(&buckets), read),
-            q: buffer("q", bytemuck::cast_slice(&q), READ_WRITE),
-            patch_visits: buffer("patch visits", bytemuck::cast_slice(&patch_visits), READ_WRITE),
-            probe_visits: buffer("probe visits", bytemuck::cast_slice(&probe_visits), READ_WRITE),
-            cdf: buffer("cdf", bytemuck::cast_slice(&cdf), READ_WRITE),
-            lambertian_sums: buffer("lambertian sums", bytemuck::cast_slice(&sums), READ_WRITE),
-            patch_cos_integrals: buffer("patch cosine integrals", bytemuck::cast_slice(&cosines), read),
-            built_visits: buffer("built visits", bytemuck::cast_slice(&built), READ_WRITE),
+            positions: buffer("probe positions", bytemuck::cast_slice(&padded(&a.positions, 1)), read),
+            normals: buffer("probe normals", bytemuck::cast_slice(&padded(&a.normals, 1)), read),
+            index_table: buffer("index table", bytemuck::cast_slice(&one(&a.index_table)), index_usage),
+            q: buffer("q", bytemuck::cast_slice(&one(&a.q)), READ_WRITE),
+            patch_visits: buffer("patch visits", bytemuck::cast_slice(&one(&a.patch_visits)), READ_WRITE),
+            region_visits: buffer("region visits", bytemuck::cast_slice(&one(&a.region_visits)), READ_WRITE),
+            cdf: buffer("cdf", bytemuck::cast_slice(&padded(&a.cdf, 1)), READ_WRITE),
+            integral_terms: buffer("integral terms", bytemuck::cast_slice(&one(&a.integral_terms)), READ_WRITE),
+            patch_weights: buffer("patch weights", bytemuck::cast_slice(&padded(&a.patch_weights, 1)), read),
+            // The CDFs uploaded are current: rebuild only what the first pass changes.
+            built_visits: buffer("built visits", bytemuck::cast_slice(&one(&a.region_visits)), READ_WRITE),
         }
+    }
+
+    /// Rewrites every array of `volume` (after the host split leaves), its CDFs
+    /// current; the buffers were sized for its capacity.
+    pub fn write_volume(&self, queue: &wgpu::Queue, volume: &IrradianceVolume) {
+        let a = Arrays::of_volume(volume);
+        queue.write_buffer(&self.index_table, 0, bytemuck::cast_slice(&a.index_table));
+        queue.write_buffer(&self.q, 0, bytemuck::cast_slice(&a.q));
+        queue.write_buffer(&self.patch_visits, 0, bytemuck::cast_slice(&a.patch_visits));
+        queue.write_buffer(&self.region_visits, 0, bytemuck::cast_slice(&a.region_visits));
+        queue.write_buffer(&self.cdf, 0, bytemuck::cast_slice(&a.cdf));
+        queue.write_buffer(&self.integral_terms, 0, bytemuck::cast_slice(&a.integral_terms));
+        queue.write_buffer(&self.built_visits, 0, bytemuck::cast_slice(&a.region_visits));
+    }
+}
+
+/// Stores words read back from the GPU into `slots` (as many as both hold).
+fn store(slots: &[AtomicU32], words: &[u32]) {
+    for (slot, &word) in slots.iter().zip(words) {
+        slot.store(word, Ordering::Relaxed);
     }
 }
 
 /// Stores learned Q and visit counts (read back from the GPU) into `grid`, then
 /// rebuilds its sampling: the grid then holds exactly the GPU's learned state.
 pub fn store_learned(grid: &mut HemisphereGrid, q: &[u32], patch_visits: &[u32], probe_visits: &[u32]) {
-    for (word, &value) in grid.q_values().iter().zip(q) {
-        word.store(value, Ordering::Relaxed);
-    }
-    for (word, &value) in grid.visit_counts().iter().zip(patch_visits) {
-        word.store(value, Ordering::Relaxed);
-    }
-    for (word, &value) in grid.probe_visit_counts().iter().zip(probe_visits) {
-        word.store(value, Ordering::Relaxed);
-    }
-    guiding_core::Guide::rebuild_sampling(grid);
+    store(grid.q_values(), q);
+    store(grid.visit_counts(), patch_visits);
+    store(grid.probe_visit_counts(), probe_visits);
+    grid.rebuild_sampling();
+}
+
+/// Stores learned Q and visit counts (read back from the GPU, its leaves in the same
+/// tree) into `volume`, without rebuilding.
+pub fn store_volume_tables(volume: &IrradianceVolume, q: &[u32], patch_visits: &[u32], leaf_visits: &[u32]) {
+    store(volume.q_values(), q);
+    store(volume.patch_visit_counts(), patch_visits);
+    store(volume.leaf_visit_counts(), leaf_visits);
 }

@@ -23,12 +23,21 @@
 //! counts are read back into the same grid ([`store_learned`]), which the CPU tracer
 //! can then use or save.
 //!
+//! An [`IrradianceVolume`] follows the same pattern: its octree nodes, Q, visits, CDFs
+//! and spherical-harmonic coefficients are uploaded as they are (with room for every
+//! leaf its budget allows); the shader walks the tree to the leaf, samples the sphere
+//! folded onto the normal's hemisphere, takes the Lambertian integral from the
+//! harmonics, and learns by Eq. (1); the rebuild kernel projects each changed leaf
+//! again. Splitting busy leaves stays on the host: after each pass the leaf visit
+//! counts come back (a few KiB), and only when guiding-core says a split is due
+//! ([`IrradianceVolume::splits_pending`]) do the tables come home, split, and go back.
+//!
 //! What runs on the GPU: diffuse, conductor (GGX, optional complex-IOR Fresnel),
 //! dielectric and thin dielectric materials; area lights; a constant environment;
-//! geometric normals; the hemisphere grid in its cylindrical layout with the simple,
-//! region or exponential learning rates. Scenes or settings needing more (textures,
-//! masks, plastic, an image environment, the volume or the mixture) are refused with a
-//! message naming what is missing.
+//! geometric normals; the hemisphere grid in its cylindrical layout and the irradiance
+//! volume, with the simple, region or exponential learning rates. Scenes or settings
+//! needing more (textures, masks, plastic, an image environment, the mixture) are
+//! refused with a message naming what is missing.
 
 mod context;
 mod guide_buffers;
@@ -38,12 +47,12 @@ use std::time::Instant;
 
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
-use guiding_core::{HemisphereGrid, LearningRate};
+use guiding_core::{Guide, HemisphereGrid, IrradianceVolume, LearningRate};
 use wgpu::util::DeviceExt;
 
 pub use context::GpuContext;
-pub use guide_buffers::store_learned;
 use guide_buffers::GuideBuffers;
+pub use guide_buffers::{store_learned, GpuGuide};
 use scene_buffers::SceneBuffers;
 
 use crate::environment::Sky;
@@ -74,6 +83,23 @@ struct Params {
     guide_shape: [u32; 4],
     guide_lookup: [f32; 4],
     guide_rule: [f32; 4],
+    volume_grid: [u32; 4],
+    volume_low: [f32; 4],
+    volume_scale: [f32; 4],
+    sample_normal: [f32; 4],
+}
+
+/// `Params::volume_grid[3]`: which structure guides (the shader's GUIDE_*).
+const GUIDE_HEMISPHERE: u32 = 0;
+const GUIDE_VOLUME: u32 = 1;
+
+fn learning_rate_code(rate: LearningRate) -> (f32, f32) {
+    match rate {
+        LearningRate::Exponential { alpha } => (0.0, alpha),
+        LearningRate::SimpleAverage => (1.0, 0.0),
+        LearningRate::RegionVisits => (2.0, 0.0),
+        LearningRate::Global { .. } => (1.0, 0.0),
+    }
 }
 
 /// A scene uploaded to a GPU, ready to render passes.
@@ -84,8 +110,12 @@ pub struct GpuTracer {
     rebuild: wgpu::ComputePipeline,
     rebuild_group: wgpu::BindGroup,
     guide: GuideBuffers,
-    /// Probes and patches of the uploaded grid (0 when unguided).
+    /// Regions (probes or leaves) and patches of the uploaded guide (0 when unguided).
     guide_size: (u32, u32),
+    /// The host's copy of an uploaded volume, which splits its leaves between passes.
+    volume: Option<IrradianceVolume>,
+    /// The leaf visit counts, read back after every learning pass of a volume.
+    region_visits_readback: wgpu::Buffer,
     params: Params,
     params_buffer: wgpu::Buffer,
     image: wgpu::Buffer,
@@ -128,14 +158,17 @@ impl GpuTracer {
         context: GpuContext,
         scene: &Scene,
         settings: &IntegratorSettings,
-        guide: Option<&HemisphereGrid>,
+        guide: Option<GpuGuide<'_>>,
     ) -> Result<Self, String> {
         if let Some(what) = unsupported(scene) {
             return Err(format!("the GPU tracer does not support {what} yet (render with --device cpu)"));
         }
         let guide = guide.filter(|_| settings.method.uses_guide());
         if settings.method.uses_guide() && guide.is_none() {
-            return Err("the GPU tracer guides with a hemisphere grid only (--guide hemisphere)".into());
+            return Err(
+                "the GPU tracer guides with a hemisphere grid or an irradiance volume (--guide hemisphere|volume)"
+                    .into(),
+            );
         }
         if let Some(what) = guide.and_then(guide_buffers::unsupported) {
             return Err(format!("the GPU guide does not support {what} yet"));
@@ -173,21 +206,33 @@ impl GpuTracer {
             scene: [
                 1e-5 * (high - low).length().max(f32::MIN_POSITIVE),
                 settings.guide_probability,
-                guide.map_or(0.0, |g| g.settings().uniform_mix),
+                match guide {
+                    Some(GpuGuide::Hemisphere(grid)) => grid.settings().uniform_mix,
+                    Some(GpuGuide::Volume(volume)) => volume.settings().uniform_mix,
+                    None => 0.0,
+                },
                 0.0,
             ],
             ..Default::default()
         };
         let mut params = params;
-        if let Some(grid) = guide {
+        if let Some(GpuGuide::Volume(volume)) = guide {
+            let s = volume.settings();
+            let (rate, parameter) = learning_rate_code(s.update_rule.learning_rate);
+            params.guide = [1, settings.learn as u32, volume.leaf_count() as u32, volume.patch_count() as u32];
+            params.guide_shape = [s.layout.resolution[0], s.layout.resolution[1], 0, 0];
+            params.guide_rule = [s.q_floor, 0.0, rate, parameter];
+            let [x, y, z] = volume.resolution();
+            params.volume_grid = [x, y, z, GUIDE_VOLUME];
+            let (low, inverse_cell_size) = volume.grid_transform();
+            params.volume_low = low.extend(0.0).to_array();
+            params.volume_scale = inverse_cell_size.extend(0.0).to_array();
+        }
+        if let Some(GpuGuide::Hemisphere(grid)) = guide {
             let s = grid.settings();
             let lookup = grid.lookup();
-            let (rate, parameter) = match s.update_rule.learning_rate {
-                LearningRate::Exponential { alpha } => (0.0, alpha),
-                LearningRate::SimpleAverage => (1.0, 0.0),
-                LearningRate::RegionVisits => (2.0, 0.0),
-                LearningRate::Global { .. } => (1.0, 0.0),
-            };
+            let (rate, parameter) = learning_rate_code(s.update_rule.learning_rate);
+            params.volume_grid[3] = GUIDE_HEMISPHERE;
             params.guide = [1, settings.learn as u32, grid.probe_count() as u32, grid.patch_count() as u32];
             params.guide_shape = [
                 s.layout.resolution[0],
@@ -266,13 +311,13 @@ impl GpuTracer {
             &counters,
             &g.positions,
             &g.normals,
-            &g.bucket_starts,
+            &g.index_table,
             &g.q,
             &g.patch_visits,
-            &g.probe_visits,
+            &g.region_visits,
             &g.cdf,
-            &g.lambertian_sums,
-            &g.patch_cos_integrals,
+            &g.integral_terms,
+            &g.patch_weights,
             &g.built_visits,
         ];
         let group = |pipeline: &wgpu::ComputePipeline, bindings: &[u32], label: &str| {
@@ -291,7 +336,17 @@ impl GpuTracer {
         let bind_group = group(&pipeline, &(0..19).collect::<Vec<u32>>(), "trace");
         let rebuild_group = group(&rebuild, &[0, 13, 15, 16, 17, 18, 19], "rebuild");
         context.check_errors()?;
-        let guide_size = guide.map_or((0, 0), |g| (g.probe_count() as u32, g.patch_count() as u32));
+        let guide_size = (params.guide[2], params.guide[3]);
+        let volume = match guide {
+            Some(GpuGuide::Volume(volume)) => Some(volume.clone()),
+            _ => None,
+        };
+        let region_visits_readback = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("region visits readback"),
+            size: guide_buffers.region_visits.size(),
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
         Ok(Self {
             context,
             pipeline,
@@ -300,6 +355,8 @@ impl GpuTracer {
             rebuild_group,
             guide: guide_buffers,
             guide_size,
+            volume,
+            region_visits_readback,
             params,
             params_buffer,
             image,
@@ -333,9 +390,17 @@ impl GpuTracer {
         }
         encoder.copy_buffer_to_buffer(&self.image, 0, &self.image_readback, 0, self.image.size());
         encoder.copy_buffer_to_buffer(&self.counters, 0, &self.counters_readback, 0, 16);
+        let splitting = self.volume.is_some() && self.params.guide[1] != 0;
+        if splitting {
+            let size = self.region_visits_readback.size();
+            encoder.copy_buffer_to_buffer(&self.guide.region_visits, 0, &self.region_visits_readback, 0, size);
+        }
         queue.submit([encoder.finish()]);
         let image: Vec<[f32; 4]> = self.context.read(&self.image_readback)?;
         let counts: Vec<u32> = self.context.read(&self.counters_readback)?;
+        if splitting {
+            self.split_volume_leaves()?;
+        }
         let counters = PathCounters {
             paths: counts[0] as u64,
             nonzero_paths: counts[1] as u64,
@@ -382,24 +447,71 @@ impl GpuTracer {
         Ok((image, statistics))
     }
 
+    /// Between passes: brings the leaf visit counts home, and when the volume's rule
+    /// says leaves split, its tables too; splits them on the host and uploads the grown
+    /// tree, tables and CDFs.
+    fn split_volume_leaves(&mut self) -> Result<(), String> {
+        let leaf_visits: Vec<u32> = self.context.read(&self.region_visits_readback)?;
+        let Some(volume) = self.volume.as_ref() else { return Ok(()) };
+        let leaves = volume.leaf_count();
+        for (slot, &visits) in volume.leaf_visit_counts().iter().zip(&leaf_visits[..leaves]) {
+            slot.store(visits, std::sync::atomic::Ordering::Relaxed);
+        }
+        if !volume.splits_pending() {
+            return Ok(());
+        }
+        let q = self.read_back(&self.guide.q)?;
+        let patch_visits = self.read_back(&self.guide.patch_visits)?;
+        let Some(volume) = self.volume.as_mut() else { return Ok(()) };
+        let entries = leaves * volume.patch_count();
+        guide_buffers::store_volume_tables(volume, &q[..entries], &patch_visits[..entries], &leaf_visits[..leaves]);
+        volume.rebuild_sampling();
+        self.guide.write_volume(&self.context.queue, volume);
+        self.params.guide[2] = volume.leaf_count() as u32;
+        self.guide_size.0 = volume.leaf_count() as u32;
+        Ok(())
+    }
+
+    /// Reads the learned Q and visit counts back into `volume` (replaced by the
+    /// uploaded volume as it learned and split on the GPU) and rebuilds its sampling.
+    pub fn download_volume(&self, volume: &mut IrradianceVolume) -> Result<(), String> {
+        let Some(learned) = self.volume.as_ref() else {
+            return Err("no irradiance volume was uploaded".into());
+        };
+        let mut learned = learned.clone();
+        let leaves = learned.leaf_count();
+        let entries = leaves * learned.patch_count();
+        let q = self.read_back(&self.guide.q)?;
+        let patch_visits = self.read_back(&self.guide.patch_visits)?;
+        let leaf_visits = self.read_back(&self.guide.region_visits)?;
+        guide_buffers::store_volume_tables(&learned, &q[..entries], &patch_visits[..entries], &leaf_visits[..leaves]);
+        learned.rebuild_sampling();
+        *volume = learned;
+        Ok(())
+    }
+
     /// Reads the learned Q and visit counts back into `grid` (the grid this tracer was
     /// built with) and rebuilds its sampling ([`store_learned`]).
     pub fn download_guide(&self, grid: &mut HemisphereGrid) -> Result<(), String> {
-        if self.guide_size.0 as usize != grid.probe_count() || self.guide_size.1 as usize != grid.patch_count() {
+        if self.volume.is_some()
+            || self.guide_size.0 as usize != grid.probe_count()
+            || self.guide_size.1 as usize != grid.patch_count()
+        {
             return Err("the grid does not match the one uploaded".into());
         }
         let q = self.read_back(&self.guide.q)?;
         let patch_visits = self.read_back(&self.guide.patch_visits)?;
-        let probe_visits = self.read_back(&self.guide.probe_visits)?;
+        let probe_visits = self.read_back(&self.guide.region_visits)?;
         store_learned(grid, &q, &patch_visits, &probe_visits);
         Ok(())
     }
 
-    /// Draws `count` directions from `probe`'s distribution on the GPU (unit direction
-    /// and the GPU's pdf per steradian each), for tests of the GPU sampler.
-    pub fn sample_guide(&mut self, probe: u32, count: u32, seed: u32) -> Result<Vec<[f32; 4]>, String> {
-        if probe >= self.guide_size.0 {
-            return Err(format!("probe {probe} of {}", self.guide_size.0));
+    /// Draws `count` directions from region `region`'s distribution on the GPU (unit
+    /// direction and the GPU's pdf per steradian each), for tests of the GPU sampler: a
+    /// probe of the grid, or a leaf of the volume folded about `normal`.
+    pub fn sample_guide(&mut self, region: u32, normal: Vec3, count: u32, seed: u32) -> Result<Vec<[f32; 4]>, String> {
+        if region >= self.guide_size.0 {
+            return Err(format!("region {region} of {}", self.guide_size.0));
         }
         let device = &self.context.device;
         let samples = device.create_buffer(&wgpu::BufferDescriptor {
@@ -431,8 +543,9 @@ impl GpuTracer {
             layout: &pipeline.get_bind_group_layout(0),
             entries: &entries,
         });
-        self.params.pass_index = probe;
+        self.params.pass_index = region;
         self.params.seed = seed;
+        self.params.sample_normal = normal.extend(0.0).to_array();
         self.context.queue.write_buffer(&self.params_buffer, 0, bytemuck::bytes_of(&self.params));
         let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("sample") });
         {

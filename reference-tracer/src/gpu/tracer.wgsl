@@ -1,8 +1,8 @@
 // Lodestar's GPU path tracer: one invocation traces one pixel's path for one pass (a
 // megakernel), the same estimators as the CPU tracer (integrator.rs): BSDF sampling,
 // next-event estimation with the power heuristic, and guided sampling from a hemisphere
-// grid uploaded in guiding-core's own flat layout, learning by Eq. (1) with
-// compare-exchange float updates on atomic<u32>.
+// grid or an irradiance volume uploaded in guiding-core's own flat layout, learning by
+// Eq. (1) with compare-exchange float updates on atomic<u32>.
 
 const PI: f32 = 3.14159265358979;
 const INFINITY: f32 = 3.4e38;
@@ -20,6 +20,9 @@ const CONDUCTOR: u32 = 1u;
 const DIELECTRIC: u32 = 2u;
 const THIN_DIELECTRIC: u32 = 3u;
 
+const GUIDE_HEMISPHERE: u32 = 0u;
+const GUIDE_VOLUME: u32 = 1u;
+
 struct Params {
     width: u32,
     height: u32,
@@ -35,10 +38,14 @@ struct Params {
     up: vec4<f32>,
     environment: vec4<f32>, // rgb radiance; w: probability that NEE picks the environment
     scene: vec4<f32>,       // x: ray epsilon (scene-relative), y: guide probability
-    guide: vec4<u32>,       // x: guide present, y: learn, z: probes, w: patches
-    guide_shape: vec4<u32>, // x: entry rows (cos θ bands), y: entry columns (φ sectors), z: buckets, w: search rings
+    guide: vec4<u32>,       // x: guide present, y: learn, z: regions (probes or leaves), w: patches
+    guide_shape: vec4<u32>, // x: patch rows (cos θ bands), y: patch columns (φ sectors), z: buckets, w: search rings
     guide_lookup: vec4<f32>, // xyz: hash grid origin, w: cell size
     guide_rule: vec4<f32>,  // x: floor, y: cos of the largest normal angle, z: learning rate kind, w: its parameter
+    volume_grid: vec4<u32>, // xyz: the volume's initial grid cells per axis, w: guide kind (GUIDE_*)
+    volume_low: vec4<f32>,  // xyz: the grid's low corner
+    volume_scale: vec4<f32>, // xyz: the grid's cells per unit length
+    sample_normal: vec4<f32>, // xyz: the normal `sample_guide` samples a volume leaf about
 };
 
 struct Node {
@@ -87,18 +94,23 @@ struct Counters {
 @group(0) @binding(8) var<storage, read_write> pass_image: array<vec4<f32>>;
 @group(0) @binding(9) var<storage, read_write> counters: Counters;
 
-// The hemisphere grid, in guiding-core's own flat layout (HemisphereGrid's slices,
-// uploaded unchanged): probe p's entry k is entry p·N + k; probes sorted by bucket.
+// The directional guide, in guiding-core's own flat layout (HemisphereGrid's or
+// IrradianceVolume's slices, uploaded unchanged): region r's patch k is entry r·N + k.
+// A region is a probe of the grid (sorted by bucket) or a leaf of the volume.
 @group(0) @binding(10) var<storage, read> probe_positions: array<f32>;
 @group(0) @binding(11) var<storage, read> probe_normals: array<f32>;
-@group(0) @binding(12) var<storage, read> bucket_starts: array<u32>;
+// The grid: its hash grid's bucket starts. The volume: its octree's nodes.
+@group(0) @binding(12) var<storage, read> index_table: array<u32>;
 @group(0) @binding(13) var<storage, read_write> q: array<atomic<u32>>;
 @group(0) @binding(14) var<storage, read_write> patch_visits: array<atomic<u32>>;
-@group(0) @binding(15) var<storage, read_write> probe_visits: array<atomic<u32>>;
+@group(0) @binding(15) var<storage, read_write> region_visits: array<atomic<u32>>;
 @group(0) @binding(16) var<storage, read_write> cdf: array<f32>;
-@group(0) @binding(17) var<storage, read_write> lambertian_sums: array<atomic<u32>>;
-@group(0) @binding(18) var<storage, read> patch_cos_integrals: array<f32>;
-// Each probe's visit count when its CDF was last built (the GPU's own bookkeeping).
+// The grid: each probe's Lambertian sum Σ Q·∫cos. The volume: each leaf's nine
+// spherical-harmonic coefficients of Q.
+@group(0) @binding(17) var<storage, read_write> integral_terms: array<atomic<u32>>;
+// The grid: each patch's ∫cos dω. The volume: each patch's nine ∫Y_lm dω.
+@group(0) @binding(18) var<storage, read> patch_weights: array<f32>;
+// Each region's visit count when its CDF was last built (the GPU's own bookkeeping).
 @group(0) @binding(19) var<storage, read_write> built_visits: array<u32>;
 // Directions drawn by `sample_guide` (tests of the GPU sampler).
 @group(0) @binding(20) var<storage, read_write> guide_samples: array<vec4<f32>>;
@@ -594,7 +606,7 @@ struct Nearest {
 fn visit_cell(cell: vec3<i32>, query: vec3<f32>, normal: vec3<f32>, best: Nearest) -> Nearest {
     var result = best;
     let b = bucket(cell);
-    for (var p = bucket_starts[b]; p < bucket_starts[b + 1u]; p += 1u) {
+    for (var p = index_table[b]; p < index_table[b + 1u]; p += 1u) {
         let d = probe_position(p) - query;
         let d2 = dot(d, d);
         if ((result.probe == NO_PROBE || d2 < result.distance2) && dot(probe_normal(p), normal) >= params.guide_rule.y) {
@@ -677,17 +689,34 @@ fn direction_in_patch(entry: u32, xi: vec2<f32>) -> vec3<f32> {
     return vec3<f32>(d.x * scale, d.y * scale, MIN_SAMPLED_COS);
 }
 
-fn patch_probability(probe: u32, entry: u32) -> f32 {
-    let base = probe * params.guide.w;
+fn patch_probability(region: u32, entry: u32) -> f32 {
+    let base = region * params.guide.w;
     let low = select(0.0, cdf[base + entry - 1u], entry > 0u);
     return cdf[base + entry] - low;
 }
 
-// pdf per steradian of world direction `wi` at `probe`.
-fn guide_pdf(probe: u32, wi: vec3<f32>) -> f32 {
-    let entry = patch_of(to_local(frame_from_normal(probe_normal(probe)), wi));
-    if (entry >= params.guide.w) { return 0.0; }
-    return patch_probability(probe, entry) / patch_solid_angle();
+struct CdfSample {
+    entry: u32,
+    rest: f32,
+};
+
+// sample_cdf over region `region`'s patches: the patch, and `u` rescaled inside it.
+fn invert_cdf(region: u32, u: f32) -> CdfSample {
+    let n = params.guide.w;
+    let base = region * n;
+    var low = 0u;
+    var high = n;
+    while (low < high) {
+        let middle = (low + high) / 2u;
+        if (cdf[base + middle] <= u) { low = middle + 1u; } else { high = middle; }
+    }
+    let entry = min(low, n - 1u);
+    let start = select(0.0, cdf[base + entry - 1u], entry > 0u);
+    let width = cdf[base + entry] - start;
+    var s: CdfSample;
+    s.entry = entry;
+    s.rest = clamp(select(0.0, (u - start) / width, width > 0.0), 0.0, 0.99999994);
+    return s;
 }
 
 struct GuideSample {
@@ -695,48 +724,170 @@ struct GuideSample {
     pdf: f32,
 };
 
-fn guide_sample(probe: u32, u: vec2<f32>) -> GuideSample {
-    let n = params.guide.w;
-    let base = probe * n;
-    var low = 0u;
-    var high = n;
-    while (low < high) {
-        let middle = (low + high) / 2u;
-        if (cdf[base + middle] <= u.x) { low = middle + 1u; } else { high = middle; }
-    }
-    let entry = min(low, n - 1u);
-    let start = select(0.0, cdf[base + entry - 1u], entry > 0u);
-    let width = cdf[base + entry] - start;
-    let u_in_patch = clamp(select(0.0, (u.x - start) / width, width > 0.0), 0.0, 0.99999994);
+fn grid_pdf(probe: u32, wi: vec3<f32>) -> f32 {
+    let entry = patch_of(to_local(frame_from_normal(probe_normal(probe)), wi));
+    if (entry >= params.guide.w) { return 0.0; }
+    return patch_probability(probe, entry) / patch_solid_angle();
+}
+
+fn grid_sample(probe: u32, u: vec2<f32>) -> GuideSample {
+    let c = invert_cdf(probe, u.x);
     var s: GuideSample;
-    s.wi = to_world(frame_from_normal(probe_normal(probe)), direction_in_patch(entry, vec2<f32>(u_in_patch, u.y)));
-    s.pdf = width / patch_solid_angle();
+    s.wi = to_world(frame_from_normal(probe_normal(probe)), direction_in_patch(c.entry, vec2<f32>(c.rest, u.y)));
+    s.pdf = patch_probability(probe, c.entry) / patch_solid_angle();
     return s;
+}
+
+// ---------------------------------------------------------------------------------
+// The irradiance volume (guiding-core's volume/): leaf lookup down the octree, the
+// whole sphere in equal-area patches in world axes, sampling folded onto the normal's
+// hemisphere, and the Lambertian integral from each leaf's spherical harmonics.
+
+const LEAF_BIT: u32 = 0x80000000u;
+const MAX_TREE_DEPTH: u32 = 32u;
+
+// IrradianceVolume::leaf_at: the grid cell holding `p` (the nearest one outside), then
+// down by octants; NO_PROBE for a non-finite point.
+fn volume_leaf(p: vec3<f32>) -> u32 {
+    if (!all(abs(p) < vec3<f32>(INFINITY))) { return NO_PROBE; }
+    let resolution = vec3<i32>(params.volume_grid.xyz);
+    let scaled = max((p - params.volume_low.xyz) * params.volume_scale.xyz, vec3<f32>(0.0));
+    let c = min(vec3<i32>(scaled), resolution - vec3<i32>(1));
+    var offset = clamp(scaled - vec3<f32>(c), vec3<f32>(0.0), vec3<f32>(1.0));
+    var entry = index_table[u32((c.z * resolution.y + c.y) * resolution.x + c.x)];
+    for (var depth = 0u; depth < MAX_TREE_DEPTH && (entry & LEAF_BIT) == 0u; depth += 1u) {
+        let upper = offset >= vec3<f32>(0.5);
+        let octant = select(0u, 1u, upper.x) | select(0u, 2u, upper.y) | select(0u, 4u, upper.z);
+        offset = offset * 2.0 - select(vec3<f32>(0.0), vec3<f32>(1.0), upper);
+        entry = index_table[entry + octant];
+    }
+    if ((entry & LEAF_BIT) == 0u) { return NO_PROBE; }
+    return entry & ~LEAF_BIT;
+}
+
+// SphereLayout::patch_of: bands of z, sectors of φ about the world z axis.
+fn sphere_patch_of(direction: vec3<f32>) -> u32 {
+    let d = normalize(direction);
+    let bands = params.guide_shape.x;
+    let sectors = params.guide_shape.y;
+    let band = min(u32((d.z + 1.0) * 0.5 * f32(bands)), bands - 1u);
+    var phi = atan2(d.y, d.x);
+    if (phi < 0.0) { phi += 2.0 * PI; }
+    let sector = min(u32(phi * (0.5 / PI) * f32(sectors)), sectors - 1u);
+    return band * sectors + sector;
+}
+
+// SphereLayout::direction_in_patch: uniform in solid angle inside the patch.
+fn sphere_direction_in_patch(entry: u32, u: vec2<f32>) -> vec3<f32> {
+    let bands = params.guide_shape.x;
+    let sectors = params.guide_shape.y;
+    let z = clamp(-1.0 + 2.0 * (f32(entry / sectors) + u.x) / f32(bands), -1.0, 1.0);
+    let phi = 2.0 * PI * (f32(entry % sectors) + u.y) / f32(sectors);
+    let r = sqrt(max(1.0 - z * z, 0.0));
+    return vec3<f32>(r * cos(phi), r * sin(phi), z);
+}
+
+fn mirror(d: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
+    return normalize(d - 2.0 * dot(d, n) * n);
+}
+
+fn sphere_pdf(leaf: u32, d: vec3<f32>) -> f32 {
+    return patch_probability(leaf, sphere_patch_of(d)) * f32(params.guide.w) / (4.0 * PI);
+}
+
+// VolumeDistribution::pdf: p(ω) + p(mirror ω) above the surface, 0 below.
+fn volume_pdf(leaf: u32, normal: vec3<f32>, wi: vec3<f32>) -> f32 {
+    if (!(dot(wi, normal) >= 0.0)) { return 0.0; }
+    return sphere_pdf(leaf, wi) + sphere_pdf(leaf, mirror(wi, normal));
+}
+
+fn volume_sample(leaf: u32, normal: vec3<f32>, u: vec2<f32>) -> GuideSample {
+    let c = invert_cdf(leaf, u.x);
+    var d = sphere_direction_in_patch(c.entry, vec2<f32>(c.rest, u.y));
+    if (dot(d, normal) < 0.0) { d = mirror(d, normal); }
+    let cos_theta = dot(d, normal);
+    if (cos_theta < MIN_SAMPLED_COS) { d = normalize(d + (MIN_SAMPLED_COS - cos_theta) * normal); }
+    var s: GuideSample;
+    s.wi = d;
+    s.pdf = volume_pdf(leaf, normal, d);
+    return s;
+}
+
+// The nine real spherical harmonics of order ≤ 2 at unit `d` (irradiance_sh.rs).
+fn sh_basis(d: vec3<f32>) -> array<f32, 9> {
+    return array<f32, 9>(
+        0.282095,
+        0.488603 * d.y,
+        0.488603 * d.z,
+        0.488603 * d.x,
+        1.092548 * d.x * d.y,
+        1.092548 * d.y * d.z,
+        0.315392 * (3.0 * d.z * d.z - 1.0),
+        1.092548 * d.x * d.z,
+        0.546274 * (d.x * d.x - d.y * d.y),
+    );
+}
+
+// ∫ Q·max(0, n·ω)/π dω from leaf `leaf`'s coefficients (Ramamoorthi–Hanrahan's band
+// weights Â_l/π), clamped at 0.
+fn sh_cosine_integral(leaf: u32, normal: vec3<f32>) -> f32 {
+    let weights = array<f32, 9>(1.0, 0.6666667, 0.6666667, 0.6666667, 0.25, 0.25, 0.25, 0.25, 0.25);
+    let y = sh_basis(normal);
+    var sum = 0.0;
+    for (var i = 0u; i < 9u; i += 1u) {
+        sum += weights[i] * bitcast<f32>(atomicLoad(&integral_terms[9u * leaf + i])) * y[i];
+    }
+    return max(sum, 0.0);
+}
+
+// ---------------------------------------------------------------------------------
+// Either guide, by params.volume_grid.w: a region is a probe or a leaf.
+
+fn guide_locate(point: vec3<f32>, normal: vec3<f32>) -> u32 {
+    if (params.volume_grid.w == GUIDE_VOLUME) { return volume_leaf(point); }
+    return locate(point, normal);
+}
+
+// pdf per steradian of world direction `wi` at `region`, on the side of `normal`.
+fn guide_pdf(region: u32, normal: vec3<f32>, wi: vec3<f32>) -> f32 {
+    if (params.volume_grid.w == GUIDE_VOLUME) { return volume_pdf(region, normal, wi); }
+    return grid_pdf(region, wi);
+}
+
+fn guide_sample(region: u32, normal: vec3<f32>, u: vec2<f32>) -> GuideSample {
+    if (params.volume_grid.w == GUIDE_VOLUME) { return volume_sample(region, normal, u); }
+    return grid_sample(region, u);
+}
+
+// The patch of `region` holding world direction `wi`, or N (none).
+fn guide_patch(region: u32, wi: vec3<f32>) -> u32 {
+    if (params.volume_grid.w == GUIDE_VOLUME) { return sphere_patch_of(wi); }
+    return patch_of(to_local(frame_from_normal(probe_normal(region)), wi));
 }
 
 // A float added to a probe's Lambertian sum by compare-exchange (storage pointers
 // cannot be passed to functions in WGSL, so this names its array).
 fn add_to_lambertian_sum(probe: u32, value: f32) {
-    var old = atomicLoad(&lambertian_sums[probe]);
+    var old = atomicLoad(&integral_terms[probe]);
     loop {
-        let result = atomicCompareExchangeWeak(&lambertian_sums[probe], old, bitcast<u32>(bitcast<f32>(old) + value));
+        let result = atomicCompareExchangeWeak(&integral_terms[probe], old, bitcast<u32>(bitcast<f32>(old) + value));
         if (result.exchanged) { break; }
         old = result.old_value;
     }
 }
 
-// Eq. (1) with the grid's rule: Q' = (1 − α)Q + α·target, above the floor.
-fn guide_update(probe: u32, wi: vec3<f32>, goal: f32) {
+// Eq. (1) with the guide's rule: Q' = (1 − α)Q + α·target, above the floor.
+fn guide_update(region: u32, wi: vec3<f32>, goal: f32) {
     if (!(goal >= 0.0 && goal < INFINITY)) { return; }
-    let entry = patch_of(to_local(frame_from_normal(probe_normal(probe)), wi));
+    let entry = guide_patch(region, wi);
     if (entry >= params.guide.w) { return; }
-    let index = probe * params.guide.w + entry;
+    let index = region * params.guide.w + entry;
     let entry_visits = atomicAdd(&patch_visits[index], 1u);
-    let region_visits = atomicAdd(&probe_visits[probe], 1u);
+    let visits = atomicAdd(&region_visits[region], 1u);
     // guide_rule.z: 0 exponential (α = w), 1 simple average, 2 region visits.
     var alpha = params.guide_rule.w;
     if (params.guide_rule.z == 1.0) { alpha = 1.0 / (1.0 + f32(entry_visits)); }
-    if (params.guide_rule.z == 2.0) { alpha = 1.0 / (1.0 + f32(region_visits)); }
+    if (params.guide_rule.z == 2.0) { alpha = 1.0 / (1.0 + f32(visits)); }
     var old = atomicLoad(&q[index]);
     var stored = 0.0;
     loop {
@@ -749,22 +900,28 @@ fn guide_update(probe: u32, wi: vec3<f32>, goal: f32) {
         if (result.exchanged) { break; }
         old = result.old_value;
     }
-    let change = (stored - bitcast<f32>(old)) * patch_cos_integrals[entry];
-    if (change != 0.0) { add_to_lambertian_sum(probe, change); }
+    // The grid keeps its Lambertian sums current; the volume projects at each rebuild.
+    if (params.volume_grid.w == GUIDE_HEMISPHERE) {
+        let change = (stored - bitcast<f32>(old)) * patch_weights[entry];
+        if (change != 0.0) { add_to_lambertian_sum(region, change); }
+    }
 }
 
-// ∫ Q fs cos at `probe` for the material: the exact sum for diffuse surfaces, one BSDF
-// sample for glossy ones (IntegralEstimator::BsdfSampled).
-fn guide_integral(probe: u32, m: Material, shading: Shading, wo_local: vec3<f32>, u: vec2<f32>, u_lobe: f32) -> f32 {
+// ∫ Q fs cos at `region` for the material: exact (grid) or from the spherical harmonics
+// (volume) for diffuse surfaces, one BSDF sample for glossy ones
+// (IntegralEstimator::BsdfSampled).
+fn guide_integral(region: u32, m: Material, shading: Shading, wo_local: vec3<f32>, u: vec2<f32>, u_lobe: f32) -> f32 {
     if (m.kind == DIFFUSE) {
-        return luminance(m.albedo.xyz) / PI * max(bitcast<f32>(atomicLoad(&lambertian_sums[probe])), 0.0);
+        if (params.volume_grid.w == GUIDE_VOLUME) {
+            return luminance(m.albedo.xyz) * sh_cosine_integral(region, shading.frame.normal);
+        }
+        return luminance(m.albedo.xyz) / PI * max(bitcast<f32>(atomicLoad(&integral_terms[region])), 0.0);
     }
     let s = bsdf_sample(m, wo_local, u, u_lobe);
     if (!s.ok) { return 0.0; }
-    let wi = to_world(shading.frame, s.wi);
-    let entry = patch_of(to_local(frame_from_normal(probe_normal(probe)), wi));
+    let entry = guide_patch(region, to_world(shading.frame, s.wi));
     if (entry >= params.guide.w) { return 0.0; }
-    return bitcast<f32>(atomicLoad(&q[probe * params.guide.w + entry])) * luminance(s.weight);
+    return bitcast<f32>(atomicLoad(&q[region * params.guide.w + entry])) * luminance(s.weight);
 }
 
 // Draws arrayLength(guide_samples) directions from probe `params.pass_index`'s
@@ -773,30 +930,43 @@ fn guide_integral(probe: u32, m: Material, shading: Shading, wo_local: vec3<f32>
 fn sample_guide(@builtin(global_invocation_id) id: vec3<u32>) {
     if (id.x >= arrayLength(&guide_samples)) { return; }
     rng_state = pcg_hash(id.x ^ pcg_hash(params.seed));
-    let s = guide_sample(params.pass_index, next_vec2());
+    let s = guide_sample(params.pass_index, params.sample_normal.xyz, next_vec2());
     guide_samples[id.x] = vec4<f32>(s.wi, s.pdf);
 }
 
-// Rebuilds the CDF of every probe whose visits moved since its last build (one
-// invocation per probe): p_k = (1 − mix)·Q_k/ΣQ + mix/N, quantised to 2⁻²⁴ like
-// guiding-core's build_cdf, and the exact Lambertian sum.
+// Rebuilds the CDF of every region whose visits moved since its last build (one
+// invocation per region): p_k = (1 − mix)·Q_k/ΣQ + mix/N, quantised to 2⁻²⁴ like
+// guiding-core's build_cdf, with the grid's exact Lambertian sum or the volume's
+// spherical-harmonic projection.
 @compute @workgroup_size(64, 1, 1)
 fn rebuild(@builtin(global_invocation_id) id: vec3<u32>) {
-    let probe = id.x;
-    if (probe >= params.guide.z) { return; }
-    let visits = atomicLoad(&probe_visits[probe]);
-    if (visits == built_visits[probe] && params.pass_index != 0xffffffffu) { return; }
-    built_visits[probe] = visits;
+    let region = id.x;
+    if (region >= params.guide.z) { return; }
+    let visits = atomicLoad(&region_visits[region]);
+    if (visits == built_visits[region] && params.pass_index != 0xffffffffu) { return; }
+    built_visits[region] = visits;
     let n = params.guide.w;
-    let base = probe * n;
+    let base = region * n;
+    let volume = params.volume_grid.w == GUIDE_VOLUME;
     var total = 0.0;
     var cosine_sum = 0.0;
+    var sh = array<f32, 9>(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
     for (var k = 0u; k < n; k += 1u) {
         let value = bitcast<f32>(atomicLoad(&q[base + k]));
         total += value;
-        cosine_sum += value * patch_cos_integrals[k];
+        if (volume) {
+            for (var i = 0u; i < 9u; i += 1u) { sh[i] += value * patch_weights[9u * k + i]; }
+        } else {
+            cosine_sum += value * patch_weights[k];
+        }
     }
-    atomicStore(&lambertian_sums[probe], bitcast<u32>(cosine_sum));
+    if (volume) {
+        for (var i = 0u; i < 9u; i += 1u) {
+            atomicStore(&integral_terms[9u * region + i], bitcast<u32>(clamp(sh[i], -3.4e38, 3.4e38)));
+        }
+    } else {
+        atomicStore(&integral_terms[region], bitcast<u32>(cosine_sum));
+    }
     var mix = params.scene.z;
     if (!(total > 0.0)) { mix = 1.0; }
     let scale = select(0.0, (1.0 - mix) / total * 16777216.0, total > 0.0);
@@ -896,7 +1066,7 @@ fn trace(@builtin(global_invocation_id) id: vec3<u32>) {
         let delta = is_delta(m);
         let wo_local = to_local(shading.frame, wo);
         var probe = NO_PROBE;
-        if (guided && !delta) { probe = locate(point, shading.frame.normal); }
+        if (guided && !delta) { probe = guide_locate(point, shading.frame.normal); }
         if (learning && !delta && probe != NO_PROBE && count > 0u) {
             let u = next_vec2();
             let u_lobe = next_f32();
@@ -953,7 +1123,7 @@ fn trace(@builtin(global_invocation_id) id: vec3<u32>) {
                 rays += 1u;
                 if (!occluded(start, wi, t_max)) {
                     var scatter = bsdf_pdf(m, wo_local, wi_local);
-                    if (p > 0.0) { scatter = p * guide_pdf(probe, wi) + (1.0 - p) * scatter; }
+                    if (p > 0.0) { scatter = p * guide_pdf(probe, shading.frame.normal, wi) + (1.0 - p) * scatter; }
                     let direct = f * emitted * (power_heuristic(pdf, scatter) / pdf);
                     radiance += throughput * direct;
                     add_arriving(count, luminance(direct));
@@ -978,7 +1148,7 @@ fn trace(@builtin(global_invocation_id) id: vec3<u32>) {
         } else {
             var f = vec3<f32>(0.0);
             if (u_choice < p) {
-                let g = guide_sample(probe, u);
+                let g = guide_sample(probe, shading.frame.normal, u);
                 wi = g.wi;
                 f = bsdf_eval(m, wo_local, to_local(shading.frame, wi));
             } else {
@@ -989,7 +1159,7 @@ fn trace(@builtin(global_invocation_id) id: vec3<u32>) {
             }
             if (dot(wi, shading.geometric) <= 0.0) { break; }
             pdf = bsdf_pdf(m, wo_local, to_local(shading.frame, wi));
-            if (p > 0.0) { pdf = p * guide_pdf(probe, wi) + (1.0 - p) * pdf; }
+            if (p > 0.0) { pdf = p * guide_pdf(probe, shading.frame.normal, wi) + (1.0 - p) * pdf; }
             if (!(pdf > 0.0 && pdf < INFINITY) || (f.x + f.y + f.z) <= 0.0) { break; }
             factor = f / pdf;
         }
