@@ -41,7 +41,7 @@ use obvhs::ray::RayHit;
 use obvhs::{Boundable, BvhBuildParams};
 
 pub use flat::{flat_bvh2, FlatBvh, FlatBvhNode};
-pub use watertight::{ShearedRay, TriangleHit};
+pub use watertight::{PackedTriangle, ShearedRay, TriangleHit};
 
 /// Which obvhs hierarchy to traverse.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -85,7 +85,7 @@ pub struct ObvhsIntersector {
     /// `local = world · scale`, a power of two.
     scale: f32,
     /// Triangles in BVH order (the order `primitive_indices` gives), for locality.
-    triangles: Vec<[Vec3; 3]>,
+    triangles: Vec<PackedTriangle>,
     /// Index in the caller's slice of each triangle in BVH order.
     original_index: Vec<u32>,
 }
@@ -136,7 +136,7 @@ impl ObvhsIntersector {
             }
         };
         let original_index: Vec<u32> = primitive_indices.iter().map(|&p| kept[p as usize]).collect();
-        let triangles = primitive_indices.iter().map(|&p| local[p as usize]).collect();
+        let triangles = primitive_indices.iter().map(|&p| PackedTriangle::new(local[p as usize])).collect();
         Self { hierarchy, scale, triangles, original_index }
     }
 
@@ -195,18 +195,20 @@ impl Intersector for ObvhsIntersector {
         let sheared = ShearedRay::new(ray.origin, ray.direction);
         // Ties (a ray through a shared edge) go to the lower original index, so the
         // answer does not depend on traversal order.
-        let mut best: Option<(u32, TriangleHit)> = None;
+        let mut best: Option<(usize, TriangleHit)> = None;
         let mut test = |bvh_ray: &obvhs::ray::Ray, slot: usize| -> f32 {
-            let Some(hit) = sheared.intersect(self.triangles[slot], ray.t_min, bvh_ray.tmax) else {
+            let Some(hit) = sheared.intersect_packed(&self.triangles[slot], ray.t_min, bvh_ray.tmax) else {
                 return f32::INFINITY;
             };
             let index = self.original_index[slot];
             let closer = match best {
                 None => true,
-                Some((best_index, best_hit)) => hit.t < best_hit.t || (hit.t == best_hit.t && index < best_index),
+                Some((best_slot, best_hit)) => {
+                    hit.t < best_hit.t || (hit.t == best_hit.t && index < self.original_index[best_slot])
+                }
             };
             if closer {
-                best = Some((index, hit));
+                best = Some((slot, hit));
             }
             hit.t
         };
@@ -220,7 +222,11 @@ impl Intersector for ObvhsIntersector {
                 bvh.ray_traverse(Self::bvh_ray(ray), &mut record, &mut test);
             }
         }
-        best.map(|(primitive, hit)| Hit { t: hit.t / self.scale, primitive, barycentrics: hit.barycentrics })
+        best.map(|(slot, hit)| {
+            let t =
+                self.triangles[slot].plane_distance(ray).filter(|&t| t > ray.t_min && t <= ray.t_max).unwrap_or(hit.t);
+            Hit { t: t / self.scale, primitive: self.original_index[slot], barycentrics: hit.barycentrics }
+        })
     }
 
     #[inline]
@@ -232,7 +238,7 @@ impl Intersector for ObvhsIntersector {
         let sheared = ShearedRay::new(ray.origin, ray.direction);
         let test = |bvh_ray: &obvhs::ray::Ray, slot: usize| -> f32 {
             // Strictly inside the segment: a shadow ray ending on the light is not blocked by it.
-            match sheared.intersect(self.triangles[slot], ray.t_min, bvh_ray.tmax) {
+            match sheared.intersect_packed(&self.triangles[slot], ray.t_min, bvh_ray.tmax) {
                 Some(hit) if hit.t < ray.t_max => hit.t,
                 _ => f32::INFINITY,
             }
