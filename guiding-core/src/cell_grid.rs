@@ -79,7 +79,7 @@ impl CellGrid {
 
     /// The box's low corner and the cells per unit length along each axis: cell
     /// coordinates are `(position - low) * inverse_cell_size`.
-    #[cfg_attr(not(feature = "volume"), allow(dead_code))]
+    #[cfg_attr(not(any(feature = "volume", feature = "mixture")), allow(dead_code))]
     pub(crate) fn transform(&self) -> (Vec3, Vec3) {
         (self.low, self.inverse_cell_size)
     }

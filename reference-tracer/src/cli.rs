@@ -592,19 +592,14 @@ impl Prepared {
     ) -> Result<(Image, RenderStatistics), String> {
         use crate::gpu::GpuGuide;
         let guide = self.guide.as_mut().filter(|_| settings.integrator.method.uses_guide());
-        if matches!(guide, Some(DirectionalGuide::Mixture(_))) {
-            return Err(
-                "the GPU tracer guides with a hemisphere grid or an irradiance volume (--guide hemisphere|volume)"
-                    .into(),
-            );
-        }
         if self.gpu.is_none() {
             let context = crate::gpu::GpuContext::new()?;
             eprintln!("gpu: {}", context.describe());
             let uploaded = match guide.as_deref() {
                 Some(DirectionalGuide::Hemisphere(grid)) => Some(GpuGuide::Hemisphere(grid)),
                 Some(DirectionalGuide::Volume(volume)) => Some(GpuGuide::Volume(volume)),
-                _ => None,
+                Some(DirectionalGuide::Mixture(mixture)) => Some(GpuGuide::Mixture(mixture)),
+                None => None,
             };
             let tracer = crate::gpu::GpuTracer::new(context, &self.scene, &settings.integrator, uploaded)?;
             self.gpu = Some(tracer);
@@ -614,7 +609,8 @@ impl Prepared {
         match guide {
             Some(DirectionalGuide::Hemisphere(grid)) => gpu.download_guide(grid)?,
             Some(DirectionalGuide::Volume(volume)) => gpu.download_volume(volume)?,
-            _ => {}
+            Some(DirectionalGuide::Mixture(mixture)) => gpu.download_mixture(mixture)?,
+            None => {}
         }
         Ok(result)
     }

@@ -290,8 +290,25 @@ fn volume(budget_kib: usize, split: f32) -> IrradianceVolumeSettings {
     IrradianceVolumeSettings { budget_bytes: budget_kib << 10, split_updates_per_patch: split, ..Default::default() }
 }
 
-/// Renders `scene` with a fresh irradiance volume on `device`; returns the render and
-/// the volume it learned.
+/// Renders `scene` with a fresh directional guide built from `settings` on `device`;
+/// returns the render and the guide it learned.
+fn render_learning(
+    scene: &Path,
+    device: Device,
+    method: Method,
+    spp: u32,
+    seed: u64,
+    settings: reference_tracer::directional_guide::DirectionalGuideSettings,
+) -> (RenderStatistics, DirectionalGuide) {
+    let (integrator, lights) = (integrator(method), power_lights());
+    let mut prepared = prepare_with_lights(scene, IntersectorChoice::default(), Some(settings), lights).unwrap();
+    prepared.device = device;
+    let settings = RenderSettings { integrator, budget: Budget::SamplesPerPixel(spp), seed, train_seconds: 0.0 };
+    let (_, statistics) = prepared.render(&settings, |_| {}).unwrap();
+    (statistics, prepared.guide.expect("a guide was built"))
+}
+
+/// [`render_learning`] with an irradiance volume.
 fn render_with_volume(
     scene: &Path,
     device: Device,
@@ -300,13 +317,10 @@ fn render_with_volume(
     seed: u64,
     settings: IrradianceVolumeSettings,
 ) -> (RenderStatistics, IrradianceVolume) {
-    let (integrator, lights) = (integrator(method), power_lights());
-    let mut prepared = prepare_with_lights(scene, IntersectorChoice::default(), Some(settings.into()), lights).unwrap();
-    prepared.device = device;
-    let settings = RenderSettings { integrator, budget: Budget::SamplesPerPixel(spp), seed, train_seconds: 0.0 };
-    let (_, statistics) = prepared.render(&settings, |_| {}).unwrap();
-    let Some(DirectionalGuide::Volume(volume)) = prepared.guide else { panic!("a volume was built") };
-    (statistics, volume)
+    match render_learning(scene, device, method, spp, seed, settings.into()) {
+        (statistics, DirectionalGuide::Volume(volume)) => (statistics, volume),
+        _ => panic!("a volume was built"),
+    }
 }
 
 #[test]
@@ -444,6 +458,161 @@ fn gpu_and_cpu_learn_the_same_volume_tables() {
     let (_, nee) = render(&scene, Device::Cpu, Method::Nee, 192, 55);
     support::assert_agree(
         "cpu guided-nee with the GPU's volume vs nee",
+        &support::mean_estimate(&guided),
+        &support::mean_estimate(&nee),
+    );
+}
+
+// ---------------------------------------------------------------------------------
+// The Gaussian mixture on the GPU.
+
+use guiding_core::{GaussianMixture, GaussianMixtureSettings, MixtureRegion};
+
+/// [`render_learning`] with a Gaussian mixture of 0.5 MiB.
+fn render_with_mixture(
+    scene: &Path,
+    device: Device,
+    method: Method,
+    spp: u32,
+    seed: u64,
+) -> (RenderStatistics, GaussianMixture) {
+    let settings = GaussianMixtureSettings { budget_bytes: 512 << 10, ..Default::default() };
+    match render_learning(scene, device, method, spp, seed, settings.into()) {
+        (statistics, DirectionalGuide::Mixture(mixture)) => (statistics, mixture),
+        _ => panic!("a mixture was built"),
+    }
+}
+
+#[test]
+fn the_mixture_guides_on_the_gpu_without_bias_and_learns_like_the_cpu() {
+    if !adapter_available("mixture") {
+        return;
+    }
+    for (name, width, height, spp) in [("cornell", 32, 32, 96), ("door", 32, 24, 256)] {
+        let scene = support::repository_scene(name, width, height);
+        let (_, nee) = render(&scene, Device::Cpu, Method::Nee, spp * 2, 61);
+        let reference = support::mean_estimate(&nee);
+        for method in [Method::GuidedNee, Method::Guided] {
+            let spp = if method == Method::Guided { spp * 4 } else { spp };
+            let (statistics, gpu) = render_with_mixture(&scene, Device::Gpu, method, spp, 63);
+            let (_, cpu) = render_with_mixture(&scene, Device::Cpu, method, spp, 64);
+            let label = format!("{name} gpu:{} with a mixture vs cpu nee", method.name());
+            support::assert_agree(&label, &support::mean_estimate(&statistics), &reference);
+            assert!(gpu.validate().is_ok(), "{label}");
+            assert_eq!(gpu.stats().epochs, cpu.stats().epochs, "{label}: one M-step per pass");
+            let ratio = gpu.stats().accepted_updates as f64 / cpu.stats().accepted_updates as f64;
+            eprintln!("{label}: updates GPU/CPU {ratio:.4}");
+            assert!((ratio - 1.0).abs() < 0.05, "{label}: updates GPU/CPU {ratio}");
+        }
+    }
+}
+
+/// Directions drawn on the GPU from a mixture region, replayed with guiding-core's pdf.
+struct GpuMixtureSamples<'a> {
+    samples: Vec<[f32; 4]>,
+    next: std::cell::Cell<usize>,
+    cpu: guiding_core::mixture::MixtureDistribution<'a>,
+}
+
+impl guiding_core::DirectionalDistribution for GpuMixtureSamples<'_> {
+    fn sample(&self, _u: glam::Vec2) -> guiding_core::DirectionSample {
+        let [x, y, z, pdf] = self.samples[self.next.get() % self.samples.len()];
+        self.next.set(self.next.get() + 1);
+        guiding_core::DirectionSample { direction: glam::Vec3::new(x, y, z), pdf }
+    }
+
+    fn pdf(&self, direction: glam::Vec3) -> f32 {
+        self.cpu.pdf(direction)
+    }
+}
+
+#[test]
+fn the_gpu_mixture_sampler_matches_guiding_cores_pdf() {
+    if !adapter_available("mixture sampler") {
+        return;
+    }
+    use guiding_core::validation::{chi_square_test, ChiSquareSettings};
+    let scene = support::repository_scene("cornell", 24, 24);
+    let (_, learned) = render_with_mixture(&scene, Device::Cpu, Method::GuidedNee, 32, 65);
+    let prepared = prepare_with_lights(&scene, IntersectorChoice::default(), None, power_lights()).unwrap();
+    let integrator = IntegratorSettings { method: Method::GuidedNee, ..Default::default() };
+    let mut gpu = reference_tracer::gpu::GpuTracer::new(
+        GpuContext::new().unwrap(),
+        &prepared.scene,
+        &integrator,
+        Some((&learned).into()),
+    )
+    .unwrap();
+    // The region that saw the most samples.
+    let observations = |r: usize| learned.mixture(MixtureRegion(r as u32)).observations();
+    let region = (0..learned.region_count()).max_by_key(|&r| observations(r)).unwrap();
+    let m = learned.mixture(MixtureRegion(region as u32));
+    let sharpest = (0..m.lobe_count()).map(|k| m.lobe(k).0.concentration()).fold(0.0f32, f32::max);
+    eprintln!("region {region}: {} samples, largest κ {sharpest}", observations(region));
+    assert!(sharpest > 1.0, "the mixture learned no lobe");
+    let settings = ChiSquareSettings::default();
+    let samples = gpu.sample_guide(region as u32, glam::Vec3::Z, settings.samples, 23).unwrap();
+    let cpu = learned.distribution(MixtureRegion(region as u32));
+    for s in samples.iter().take(1000) {
+        let expected = guiding_core::DirectionalDistribution::pdf(&cpu, glam::Vec3::new(s[0], s[1], s[2]));
+        assert!((s[3] - expected).abs() <= 1e-3 * expected, "GPU pdf {} vs CPU {expected}", s[3]);
+    }
+    let mean = cpu_lobe_mean(&learned, region);
+    let distribution = GpuMixtureSamples { samples, next: std::cell::Cell::new(0), cpu };
+    let report = chi_square_test(&distribution, mean, &settings);
+    eprintln!("GPU mixture sampler, region {region}: {report:?}");
+    assert!(report.passes(0.01), "{report:?}");
+}
+
+/// The mean of `region`'s sharpest lobe: the chi-square test's axis.
+fn cpu_lobe_mean(mixture: &GaussianMixture, region: usize) -> glam::Vec3 {
+    let m = mixture.mixture(MixtureRegion(region as u32));
+    let k = (0..m.lobe_count()).max_by(|&a, &b| m.lobe(a).0.concentration().total_cmp(&m.lobe(b).0.concentration()));
+    m.lobe(k.unwrap_or(0)).0.mean()
+}
+
+/// Mean squared relative difference of the regions' total weights S over regions
+/// both mixtures saw more than 200 samples in.
+fn mixture_difference(a: &GaussianMixture, b: &GaussianMixture) -> f64 {
+    let terms: Vec<f64> = (0..a.region_count() as u32)
+        .map(MixtureRegion)
+        .filter(|&r| a.mixture(r).observations() > 200 && b.mixture(r).observations() > 200)
+        .map(|r| {
+            let (x, y) = (a.mixture(r).total_weight() as f64, b.mixture(r).total_weight() as f64);
+            ((x - y) / (0.5 * (x + y))).powi(2)
+        })
+        .collect();
+    assert!(terms.len() > 20, "too few regions learned: {}", terms.len());
+    terms.iter().sum::<f64>() / terms.len() as f64
+}
+
+#[test]
+fn gpu_and_cpu_learn_the_same_mixtures_and_the_gpus_guides_the_cpu() {
+    if !adapter_available("mixture learning") {
+        return;
+    }
+    let scene = support::repository_scene("cornell", 32, 32);
+    let (_, cpu) = render_with_mixture(&scene, Device::Cpu, Method::GuidedNee, 48, 71);
+    let (_, cpu_again) = render_with_mixture(&scene, Device::Cpu, Method::GuidedNee, 48, 72);
+    let (_, gpu) = render_with_mixture(&scene, Device::Gpu, Method::GuidedNee, 48, 73);
+    let noise = mixture_difference(&cpu_again, &cpu);
+    let between = mixture_difference(&gpu, &cpu);
+    eprintln!("per-region total weights: GPU vs CPU {between:.4e}, CPU vs CPU {noise:.4e}");
+    assert!(between <= 2.0 * noise + 1e-6, "GPU vs CPU {between} against CPU vs CPU {noise}");
+    let bytes = gpu.to_bytes();
+    let loaded = GaussianMixture::from_bytes(&bytes).unwrap();
+    assert_eq!(loaded.to_bytes(), bytes, "the GPU's learned mixture round-trips exactly");
+    let settings = GaussianMixtureSettings { budget_bytes: 512 << 10, ..Default::default() };
+    let mut prepared =
+        prepare_with_lights(&scene, IntersectorChoice::default(), Some(settings.into()), power_lights()).unwrap();
+    prepared.guide = Some(DirectionalGuide::Mixture(loaded));
+    let integrator = IntegratorSettings { method: Method::GuidedNee, learn: false, ..Default::default() };
+    let render_settings =
+        RenderSettings { integrator, budget: Budget::SamplesPerPixel(96), seed: 74, train_seconds: 0.0 };
+    let (_, guided) = prepared.render(&render_settings, |_| {}).unwrap();
+    let (_, nee) = render(&scene, Device::Cpu, Method::Nee, 192, 75);
+    support::assert_agree(
+        "cpu guided-nee with the GPU's mixture vs nee",
         &support::mean_estimate(&guided),
         &support::mean_estimate(&nee),
     );

@@ -155,6 +155,53 @@ impl GaussianMixture {
         self.batch[index * stride..(index + 1) * stride].iter().for_each(|w| w.store(0, Ordering::Relaxed));
     }
 
+    /// Every region's sampling snapshot as a flat table for a tracer elsewhere (a GPU):
+    /// per region, per lobe ([`lobes`](GaussianMixtureSettings::lobes) of them), 8 f32:
+    /// the unit mean (x, y, z), κ, the normalization C(κ) (per steradian), the lobe's
+    /// weight, the region's total weight S (radiance × sr, repeated in every lobe), and
+    /// the index of the region's broadest lobe (which takes a direction no lobe claims).
+    pub fn lobe_table(&self) -> Vec<f32> {
+        let lobes = self.settings.lobes;
+        let mut table = Vec::with_capacity(self.mixtures.len() * lobes * 8);
+        for mixture in &self.mixtures {
+            let broadest = (0..mixture.lobe_count())
+                .min_by(|&a, &b| mixture.lobe(a).0.concentration().total_cmp(&mixture.lobe(b).0.concentration()))
+                .unwrap_or(0);
+            let scale = mixture.total_weight();
+            for k in 0..lobes {
+                let (lobe, weight) = if k < mixture.lobe_count() { mixture.lobe(k) } else { (mixture.lobe(0).0, 0.0) };
+                let mean = lobe.mean();
+                table.extend_from_slice(&[
+                    mean.x,
+                    mean.y,
+                    mean.z,
+                    lobe.concentration(),
+                    lobe.normalization(),
+                    weight,
+                    scale,
+                    broadest as f32,
+                ]);
+            }
+        }
+        table
+    }
+
+    /// The pending batch sums, region after region: per region the sample count (u32),
+    /// then per lobe Σ r·v and Σ r·v·ω's x, y, z (f32 bits), v = target / sampling pdf.
+    /// A tracer that learns elsewhere adds into a copy and stores it back here before
+    /// [`rebuild_sampling`](Guide::rebuild_sampling) takes the M-step.
+    pub fn batch_words(&self) -> &[AtomicU32] {
+        &self.batch
+    }
+
+    /// The grid's low corner and its cells per unit length along each axis: a point's
+    /// cell coordinates are `(position - low) * inverse_cell_size`, clamped to the grid;
+    /// its region is cell × regions per cell + normal side (see
+    /// [`locate`](Guide::locate)).
+    pub fn grid_transform(&self) -> (Vec3, Vec3) {
+        self.grid.transform()
+    }
+
     /// Bytes held by the mixtures and the batch sums.
     pub fn memory_bytes(&self) -> usize {
         self.mixtures.len() * size_of::<VmfMixture>() + self.batch.len() * size_of::<AtomicU32>()

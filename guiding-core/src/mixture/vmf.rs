@@ -61,6 +61,12 @@ impl VmfLobe {
         self.concentration
     }
 
+    /// The density at the mean, C(κ) = κ / (2π(1 − e^{−2κ}))
+    /// (1/4π at κ = 0), per steradian: `pdf(d) = C(κ)·e^{κ(μ·d − 1)}`.
+    pub fn normalization(&self) -> f32 {
+        self.normalization
+    }
+
     /// Density of unit direction `d`, per steradian. μ·d − 1 is taken as −|d − μ|²/2,
     /// which keeps its precision where μ·d rounds to 1.
     #[inline]

@@ -1,12 +1,12 @@
 //! A directional guide on the GPU: a [`HemisphereGrid`]'s or an [`IrradianceVolume`]'s
 //! flat arrays uploaded as they are (f32 positions and normals, Q as f32 bits, visit
 //! counts, CDF, Lambertian sums or spherical-harmonic coefficients, the hash grid's
-//! bucket table or the octree's nodes), updated in place by the shader, and read back
-//! into the same structure.
+//! bucket table or the octree's nodes), or a [`GaussianMixture`]'s lobe table and batch
+//! words; updated in place by the shader, and read back into the same structure.
 
 use std::sync::atomic::{AtomicU32, Ordering};
 
-use guiding_core::{Guide, HemisphereGrid, HemisphereMapping, IrradianceVolume, LearningRate};
+use guiding_core::{GaussianMixture, Guide, HemisphereGrid, HemisphereMapping, IrradianceVolume, LearningRate};
 use wgpu::util::DeviceExt;
 
 /// The structure the GPU guides with.
@@ -16,6 +16,14 @@ pub enum GpuGuide<'a> {
     Hemisphere(&'a HemisphereGrid),
     /// Octree leaves with full-sphere tables (splitting runs on the host between passes).
     Volume(&'a IrradianceVolume),
+    /// Grid regions with vMF mixtures (the M-step runs on the host between passes).
+    Mixture(&'a GaussianMixture),
+}
+
+impl<'a> From<&'a GaussianMixture> for GpuGuide<'a> {
+    fn from(mixture: &'a GaussianMixture) -> Self {
+        GpuGuide::Mixture(mixture)
+    }
 }
 
 impl<'a> From<&'a HemisphereGrid> for GpuGuide<'a> {
@@ -44,6 +52,8 @@ pub fn unsupported(guide: GpuGuide<'_>) -> Option<String> {
             settings.update_rule.learning_rate
         }
         GpuGuide::Volume(volume) => volume.settings().update_rule.learning_rate,
+        // The host takes the M-step with guiding-core's own rule, whichever it is.
+        GpuGuide::Mixture(_) => return None,
     };
     if matches!(rate, LearningRate::Global { .. }) {
         return Some("the global learning rate".into());
@@ -132,6 +142,11 @@ impl Arrays {
         }
     }
 
+    /// A mixture's lobe table (in the `cdf` slot) and batch words (in the `q` slot).
+    fn of_mixture(m: &GaussianMixture) -> Self {
+        Self { cdf: m.lobe_table(), q: bits(m.batch_words()), ..Self::empty() }
+    }
+
     fn empty() -> Self {
         Self {
             positions: vec![0.0],
@@ -153,6 +168,7 @@ impl GuideBuffers {
         let arrays = match guide {
             Some(GpuGuide::Hemisphere(grid)) => Arrays::of_grid(grid),
             Some(GpuGuide::Volume(volume)) => Arrays::of_volume(volume),
+            Some(GpuGuide::Mixture(mixture)) => Arrays::of_mixture(mixture),
             None => Arrays::empty(),
         };
         let buffer = |label: &str, bytes: &[u8], usage: wgpu::BufferUsages| {
@@ -192,8 +208,16 @@ impl GuideBuffers {
     }
 }
 
+impl GuideBuffers {
+    /// Rewrites a mixture's lobe table and batch words (after the host's M-step).
+    pub fn write_mixture(&self, queue: &wgpu::Queue, mixture: &GaussianMixture) {
+        queue.write_buffer(&self.cdf, 0, bytemuck::cast_slice(&padded(&mixture.lobe_table(), 1)));
+        queue.write_buffer(&self.q, 0, bytemuck::cast_slice(&padded(&bits(mixture.batch_words()), 1)));
+    }
+}
+
 /// Stores words read back from the GPU into `slots` (as many as both hold).
-fn store(slots: &[AtomicU32], words: &[u32]) {
+pub fn store(slots: &[AtomicU32], words: &[u32]) {
     for (slot, &word) in slots.iter().zip(words) {
         slot.store(word, Ordering::Relaxed);
     }

@@ -32,12 +32,21 @@
 //! counts come back (a few KiB), and only when guiding-core says a split is due
 //! ([`IrradianceVolume::splits_pending`]) do the tables come home, split, and go back.
 //!
+//! A [`GaussianMixture`] runs its E-step on the GPU: its lobe table (mean, κ, C(κ),
+//! weight per lobe; guiding-core's [`GaussianMixture::lobe_table`]) and its batch words
+//! are uploaded; the shader finds the region by cell and normal side, samples and
+//! evaluates the mixture exactly, and adds each sample's responsibilities into the
+//! batch sums by compare-exchange. The M-step (guiding-core's own, with its learning
+//! rate) runs on the host after each pass on the batch read back (a few KiB), and the
+//! refitted lobes go up again.
+//!
 //! What runs on the GPU: diffuse, conductor (GGX, optional complex-IOR Fresnel),
 //! dielectric and thin dielectric materials; area lights; a constant environment;
-//! geometric normals; the hemisphere grid in its cylindrical layout and the irradiance
-//! volume, with the simple, region or exponential learning rates. Scenes or settings
-//! needing more (textures, masks, plastic, an image environment, the mixture) are
-//! refused with a message naming what is missing.
+//! geometric normals; all three directional guides — the hemisphere grid in its
+//! cylindrical layout and the irradiance volume with the simple, region or exponential
+//! learning rates, the mixture with any. Scenes or settings needing more (textures,
+//! masks, plastic, an image environment) are refused with a message naming what is
+//! missing.
 
 mod context;
 mod guide_buffers;
@@ -47,7 +56,7 @@ use std::time::Instant;
 
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
-use guiding_core::{Guide, HemisphereGrid, IrradianceVolume, LearningRate};
+use guiding_core::{GaussianMixture, Guide, HemisphereGrid, IrradianceVolume, LearningRate};
 use wgpu::util::DeviceExt;
 
 pub use context::GpuContext;
@@ -92,6 +101,7 @@ struct Params {
 /// `Params::volume_grid[3]`: which structure guides (the shader's GUIDE_*).
 const GUIDE_HEMISPHERE: u32 = 0;
 const GUIDE_VOLUME: u32 = 1;
+const GUIDE_MIXTURE: u32 = 2;
 
 fn learning_rate_code(rate: LearningRate) -> (f32, f32) {
     match rate {
@@ -114,8 +124,11 @@ pub struct GpuTracer {
     guide_size: (u32, u32),
     /// The host's copy of an uploaded volume, which splits its leaves between passes.
     volume: Option<IrradianceVolume>,
-    /// The leaf visit counts, read back after every learning pass of a volume.
-    region_visits_readback: wgpu::Buffer,
+    /// The host's copy of an uploaded mixture, which takes the M-step between passes.
+    mixture: Option<GaussianMixture>,
+    /// What the host reads after every learning pass: a volume's leaf visit counts, a
+    /// mixture's batch words.
+    host_readback: wgpu::Buffer,
     params: Params,
     params_buffer: wgpu::Buffer,
     image: wgpu::Buffer,
@@ -165,10 +178,7 @@ impl GpuTracer {
         }
         let guide = guide.filter(|_| settings.method.uses_guide());
         if settings.method.uses_guide() && guide.is_none() {
-            return Err(
-                "the GPU tracer guides with a hemisphere grid or an irradiance volume (--guide hemisphere|volume)"
-                    .into(),
-            );
+            return Err("the GPU tracer needs the directional guide of the guided methods".into());
         }
         if let Some(what) = guide.and_then(guide_buffers::unsupported) {
             return Err(format!("the GPU guide does not support {what} yet"));
@@ -209,6 +219,7 @@ impl GpuTracer {
                 match guide {
                     Some(GpuGuide::Hemisphere(grid)) => grid.settings().uniform_mix,
                     Some(GpuGuide::Volume(volume)) => volume.settings().uniform_mix,
+                    Some(GpuGuide::Mixture(mixture)) => mixture.settings().uniform_mix,
                     None => 0.0,
                 },
                 0.0,
@@ -225,6 +236,16 @@ impl GpuTracer {
             let [x, y, z] = volume.resolution();
             params.volume_grid = [x, y, z, GUIDE_VOLUME];
             let (low, inverse_cell_size) = volume.grid_transform();
+            params.volume_low = low.extend(0.0).to_array();
+            params.volume_scale = inverse_cell_size.extend(0.0).to_array();
+        }
+        if let Some(GpuGuide::Mixture(mixture)) = guide {
+            let s = mixture.settings();
+            params.guide = [1, settings.learn as u32, mixture.region_count() as u32, s.lobes as u32];
+            params.guide_shape = [0, 0, s.regions_per_cell() as u32, 0];
+            let [x, y, z] = mixture.resolution();
+            params.volume_grid = [x, y, z, GUIDE_MIXTURE];
+            let (low, inverse_cell_size) = mixture.grid_transform();
             params.volume_low = low.extend(0.0).to_array();
             params.volume_scale = inverse_cell_size.extend(0.0).to_array();
         }
@@ -341,9 +362,15 @@ impl GpuTracer {
             Some(GpuGuide::Volume(volume)) => Some(volume.clone()),
             _ => None,
         };
-        let region_visits_readback = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("region visits readback"),
-            size: guide_buffers.region_visits.size(),
+        let mixture = match guide {
+            Some(GpuGuide::Mixture(mixture)) => {
+                Some(GaussianMixture::from_bytes(&mixture.to_bytes()).map_err(|e| format!("mixture: {e}"))?)
+            }
+            _ => None,
+        };
+        let host_readback = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("host readback"),
+            size: if mixture.is_some() { guide_buffers.q.size() } else { guide_buffers.region_visits.size() },
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
@@ -356,7 +383,8 @@ impl GpuTracer {
             guide: guide_buffers,
             guide_size,
             volume,
-            region_visits_readback,
+            mixture,
+            host_readback,
             params,
             params_buffer,
             image,
@@ -381,8 +409,8 @@ impl GpuTracer {
             pass.set_pipeline(&self.pipeline);
             pass.set_bind_group(0, &self.bind_group, &[]);
             pass.dispatch_workgroups(self.width.div_ceil(8), self.height.div_ceil(8), 1);
-            if self.params.guide[1] != 0 {
-                // Between passes: the CDFs of the probes that learned.
+            if self.params.guide[1] != 0 && self.mixture.is_none() {
+                // Between passes: the CDFs of the probes or leaves that learned.
                 pass.set_pipeline(&self.rebuild);
                 pass.set_bind_group(0, &self.rebuild_group, &[]);
                 pass.dispatch_workgroups(self.guide_size.0.div_ceil(64), 1, 1);
@@ -390,16 +418,21 @@ impl GpuTracer {
         }
         encoder.copy_buffer_to_buffer(&self.image, 0, &self.image_readback, 0, self.image.size());
         encoder.copy_buffer_to_buffer(&self.counters, 0, &self.counters_readback, 0, 16);
-        let splitting = self.volume.is_some() && self.params.guide[1] != 0;
-        if splitting {
-            let size = self.region_visits_readback.size();
-            encoder.copy_buffer_to_buffer(&self.guide.region_visits, 0, &self.region_visits_readback, 0, size);
+        let learning = self.params.guide[1] != 0;
+        let splitting = self.volume.is_some() && learning;
+        let fitting = self.mixture.is_some() && learning;
+        if splitting || fitting {
+            let source = if fitting { &self.guide.q } else { &self.guide.region_visits };
+            encoder.copy_buffer_to_buffer(source, 0, &self.host_readback, 0, self.host_readback.size());
         }
         queue.submit([encoder.finish()]);
         let image: Vec<[f32; 4]> = self.context.read(&self.image_readback)?;
         let counts: Vec<u32> = self.context.read(&self.counters_readback)?;
         if splitting {
             self.split_volume_leaves()?;
+        }
+        if fitting {
+            self.fit_mixture()?;
         }
         let counters = PathCounters {
             paths: counts[0] as u64,
@@ -451,7 +484,7 @@ impl GpuTracer {
     /// says leaves split, its tables too; splits them on the host and uploads the grown
     /// tree, tables and CDFs.
     fn split_volume_leaves(&mut self) -> Result<(), String> {
-        let leaf_visits: Vec<u32> = self.context.read(&self.region_visits_readback)?;
+        let leaf_visits: Vec<u32> = self.context.read(&self.host_readback)?;
         let Some(volume) = self.volume.as_ref() else { return Ok(()) };
         let leaves = volume.leaf_count();
         for (slot, &visits) in volume.leaf_visit_counts().iter().zip(&leaf_visits[..leaves]) {
@@ -469,6 +502,27 @@ impl GpuTracer {
         self.guide.write_volume(&self.context.queue, volume);
         self.params.guide[2] = volume.leaf_count() as u32;
         self.guide_size.0 = volume.leaf_count() as u32;
+        Ok(())
+    }
+
+    /// Between passes: brings the mixture's batch sums home, takes the M-step there
+    /// (guiding-core's own), and uploads the refitted lobes and an empty batch.
+    fn fit_mixture(&mut self) -> Result<(), String> {
+        let batch: Vec<u32> = self.context.read(&self.host_readback)?;
+        let Some(mixture) = self.mixture.as_mut() else { return Ok(()) };
+        guide_buffers::store(mixture.batch_words(), &batch);
+        mixture.rebuild_sampling();
+        self.guide.write_mixture(&self.context.queue, mixture);
+        Ok(())
+    }
+
+    /// Replaces `mixture` by the uploaded one as it learned on the GPU (every pass's
+    /// batch already absorbed on the host).
+    pub fn download_mixture(&self, mixture: &mut GaussianMixture) -> Result<(), String> {
+        let Some(learned) = self.mixture.as_ref() else {
+            return Err("no mixture was uploaded".into());
+        };
+        *mixture = GaussianMixture::from_bytes(&learned.to_bytes()).map_err(|e| format!("mixture: {e}"))?;
         Ok(())
     }
 
@@ -494,6 +548,7 @@ impl GpuTracer {
     /// built with) and rebuilds its sampling ([`store_learned`]).
     pub fn download_guide(&self, grid: &mut HemisphereGrid) -> Result<(), String> {
         if self.volume.is_some()
+            || self.mixture.is_some()
             || self.guide_size.0 as usize != grid.probe_count()
             || self.guide_size.1 as usize != grid.patch_count()
         {

@@ -22,6 +22,7 @@ const THIN_DIELECTRIC: u32 = 3u;
 
 const GUIDE_HEMISPHERE: u32 = 0u;
 const GUIDE_VOLUME: u32 = 1u;
+const GUIDE_MIXTURE: u32 = 2u;
 
 struct Params {
     width: u32,
@@ -42,7 +43,7 @@ struct Params {
     guide_shape: vec4<u32>, // x: patch rows (cos θ bands), y: patch columns (φ sectors), z: buckets, w: search rings
     guide_lookup: vec4<f32>, // xyz: hash grid origin, w: cell size
     guide_rule: vec4<f32>,  // x: floor, y: cos of the largest normal angle, z: learning rate kind, w: its parameter
-    volume_grid: vec4<u32>, // xyz: the volume's initial grid cells per axis, w: guide kind (GUIDE_*)
+    volume_grid: vec4<u32>, // xyz: the volume's or mixture's grid cells per axis, w: guide kind (GUIDE_*)
     volume_low: vec4<f32>,  // xyz: the grid's low corner
     volume_scale: vec4<f32>, // xyz: the grid's cells per unit length
     sample_normal: vec4<f32>, // xyz: the normal `sample_guide` samples a volume leaf about
@@ -96,7 +97,9 @@ struct Counters {
 
 // The directional guide, in guiding-core's own flat layout (HemisphereGrid's or
 // IrradianceVolume's slices, uploaded unchanged): region r's patch k is entry r·N + k.
-// A region is a probe of the grid (sorted by bucket) or a leaf of the volume.
+// A region is a probe of the grid (sorted by bucket) or a leaf of the volume. The
+// mixture (GaussianMixture's lobe table and batch words) reuses `cdf` for its lobes and
+// `q` for its batch sums; N is then its lobe count.
 @group(0) @binding(10) var<storage, read> probe_positions: array<f32>;
 @group(0) @binding(11) var<storage, read> probe_normals: array<f32>;
 // The grid: its hash grid's bucket starts. The volume: its octree's nodes.
@@ -841,21 +844,183 @@ fn sh_cosine_integral(leaf: u32, normal: vec3<f32>) -> f32 {
 }
 
 // ---------------------------------------------------------------------------------
-// Either guide, by params.volume_grid.w: a region is a probe or a leaf.
+// The Gaussian mixture (guiding-core's mixture/): a grid cell and normal side per
+// region, a vMF mixture over the sphere sampled and evaluated exactly, learned by
+// adding each sample's responsibilities into the region's batch sums; the M-step runs
+// on the host between passes.
+
+const LOBE_WORDS: u32 = 8u;
+
+// expm1 and log1p without cancellation near 0 (WGSL has neither).
+fn expm1(x: f32) -> f32 {
+    if (abs(x) < 1e-2) { return x * (1.0 + x * (0.5 + x * (0.16666667 + x * 0.041666668))); }
+    return exp(x) - 1.0;
+}
+
+fn log1p(x: f32) -> f32 {
+    if (abs(x) < 1e-2) { return x * (1.0 - x * (0.5 - x * (0.33333334 - x * 0.25))); }
+    return log(1.0 + x);
+}
+
+// GaussianMixture::locate: the grid cell, then the normal's dominant axis and sign.
+fn mixture_region(p: vec3<f32>, normal: vec3<f32>) -> u32 {
+    if (!all(abs(p) < vec3<f32>(INFINITY))) { return NO_PROBE; }
+    let resolution = vec3<i32>(params.volume_grid.xyz);
+    let scaled = max((p - params.volume_low.xyz) * params.volume_scale.xyz, vec3<f32>(0.0));
+    let c = min(vec3<i32>(scaled), resolution - vec3<i32>(1));
+    let cell = u32((c.z * resolution.y + c.y) * resolution.x + c.x);
+    var side = 0u;
+    if (params.guide_shape.z == 6u) {
+        let a = abs(normal);
+        var axis = 2u;
+        if (a.x >= a.y && a.x >= a.z) { axis = 0u; } else if (a.y >= a.z) { axis = 1u; }
+        side = 2u * axis + select(0u, 1u, normal[axis] < 0.0);
+    }
+    return cell * params.guide_shape.z + side;
+}
+
+fn lobe_word(region: u32, k: u32, i: u32) -> f32 {
+    return cdf[(region * params.guide.w + k) * LOBE_WORDS + i];
+}
+
+fn lobe_mean(region: u32, k: u32) -> vec3<f32> {
+    return vec3<f32>(lobe_word(region, k, 0u), lobe_word(region, k, 1u), lobe_word(region, k, 2u));
+}
+
+// VmfLobe::pdf: C(κ)·e^{κ(μ·d − 1)}, with μ·d − 1 = −|d − μ|²/2.
+fn lobe_pdf(region: u32, k: u32, d: vec3<f32>) -> f32 {
+    let kappa = lobe_word(region, k, 3u);
+    if (kappa == 0.0) { return lobe_word(region, k, 4u); }
+    let m = d - lobe_mean(region, k);
+    return lobe_word(region, k, 4u) * exp(kappa * (-0.5 * dot(m, m)));
+}
+
+// MixtureDistribution::pdf: the mixture with uniform_mix spread over the sphere.
+fn mixture_pdf(region: u32, d: vec3<f32>) -> f32 {
+    var sum = 0.0;
+    for (var k = 0u; k < params.guide.w; k += 1u) { sum += lobe_word(region, k, 5u) * lobe_pdf(region, k, d); }
+    return (1.0 - params.scene.z) * sum + params.scene.z * (0.25 / PI);
+}
+
+// VmfLobe::sample (Jakob's w = 1 + ln(u + (1 − u)e^{−2κ})/κ).
+fn lobe_sample(region: u32, k: u32, u: vec2<f32>) -> vec3<f32> {
+    let kappa = lobe_word(region, k, 3u);
+    var w = 1.0 - 2.0 * u.x;
+    if (kappa != 0.0) { w = clamp(1.0 + log1p((1.0 - u.x) * expm1(-2.0 * kappa)) / kappa, -1.0, 1.0); }
+    let r = sqrt(max(1.0 - w * w, 0.0));
+    let local = vec3<f32>(r * cos(2.0 * PI * u.y), r * sin(2.0 * PI * u.y), w);
+    return normalize(to_world(frame_from_normal(lobe_mean(region, k)), local));
+}
+
+fn mixture_sample(region: u32, u: vec2<f32>) -> GuideSample {
+    let mix = params.scene.z;
+    var d = vec3<f32>(0.0);
+    if (u.x < mix) {
+        let z = 1.0 - 2.0 * (u.x / mix);
+        let r = sqrt(max(1.0 - z * z, 0.0));
+        d = vec3<f32>(r * cos(2.0 * PI * u.y), r * sin(2.0 * PI * u.y), z);
+    } else {
+        let x = min((u.x - mix) / (1.0 - mix), 0.99999994);
+        let lobes = params.guide.w;
+        var chosen = lobes - 1u;
+        var low = 0.0;
+        var cumulative = 0.0;
+        for (var k = 0u; k < lobes; k += 1u) {
+            let next = cumulative + lobe_word(region, k, 5u);
+            if (x < next || k == lobes - 1u) {
+                chosen = k;
+                low = cumulative;
+                break;
+            }
+            cumulative = next;
+        }
+        let width = lobe_word(region, chosen, 5u);
+        var rest = 0.5;
+        if (width > 0.0) { rest = clamp((x - low) / width, 0.0, 0.99999994); }
+        d = lobe_sample(region, chosen, vec2<f32>(rest, u.y));
+    }
+    var s: GuideSample;
+    s.wi = d;
+    s.pdf = mixture_pdf(region, d);
+    return s;
+}
+
+// A float added to batch word `index` by compare-exchange, saturating at ±f32::MAX.
+fn add_to_batch(index: u32, value: f32) {
+    if (value == 0.0) { return; }
+    var old = atomicLoad(&q[index]);
+    loop {
+        let sum = clamp(bitcast<f32>(old) + value, -3.4028235e38, 3.4028235e38);
+        let result = atomicCompareExchangeWeak(&q[index], old, bitcast<u32>(sum));
+        if (result.exchanged) { break; }
+        old = result.old_value;
+    }
+}
+
+// GaussianMixture::update_sampled: v = target / sampling pdf, split over the lobes by
+// their responsibilities into the region's batch sums.
+fn mixture_update(region: u32, d: vec3<f32>, goal: f32, pdf: f32) {
+    if (!(abs(dot(d, d) - 1.0) < 1e-3 && pdf > 0.0 && pdf < INFINITY)) { return; }
+    let weight = min(goal / pdf, 1e30);
+    let lobes = params.guide.w;
+    let stride = 1u + 4u * lobes;
+    let base = region * stride;
+    var total = 0.0;
+    for (var k = 0u; k < lobes; k += 1u) { total += lobe_word(region, k, 5u) * lobe_pdf(region, k, d); }
+    let fallback = u32(lobe_word(region, 0u, 7u));
+    // The count saturates, as guiding-core's increment does.
+    var count = atomicLoad(&q[base]);
+    loop {
+        if (count == 0xffffffffu) { break; }
+        let result = atomicCompareExchangeWeak(&q[base], count, count + 1u);
+        if (result.exchanged) { break; }
+        count = result.old_value;
+    }
+    for (var k = 0u; k < lobes; k += 1u) {
+        var r = select(0.0, 1.0, k == fallback);
+        if (total > 0.0 && total < INFINITY) { r = lobe_word(region, k, 5u) * lobe_pdf(region, k, d) / total; }
+        let share = r * weight;
+        let word = base + 1u + 4u * k;
+        add_to_batch(word, share);
+        add_to_batch(word + 1u, share * d.x);
+        add_to_batch(word + 2u, share * d.y);
+        add_to_batch(word + 3u, share * d.z);
+    }
+}
+
+// GaussianMixture::estimate_integral: S·Σ_k w_k·fs(ω_k)·cos θ_k with ω_k drawn from
+// lobe k by the same `u`.
+fn mixture_integral(region: u32, m: Material, shading: Shading, wo_local: vec3<f32>, u: vec2<f32>) -> f32 {
+    let scale = lobe_word(region, 0u, 6u);
+    if (!(scale > 0.0)) { return 0.0; }
+    var sum = 0.0;
+    for (var k = 0u; k < params.guide.w; k += 1u) {
+        let wi = lobe_sample(region, k, u);
+        sum += lobe_word(region, k, 5u) * luminance(bsdf_eval(m, wo_local, to_local(shading.frame, wi)));
+    }
+    return min(scale * sum, 3.4e38);
+}
+
+// ---------------------------------------------------------------------------------
+// Either guide, by params.volume_grid.w: a region is a probe, a leaf or a mixture
+// region.
 
 fn guide_locate(point: vec3<f32>, normal: vec3<f32>) -> u32 {
     if (params.volume_grid.w == GUIDE_VOLUME) { return volume_leaf(point); }
+    if (params.volume_grid.w == GUIDE_MIXTURE) { return mixture_region(point, normal); }
     return locate(point, normal);
 }
 
 // pdf per steradian of world direction `wi` at `region`, on the side of `normal`.
 fn guide_pdf(region: u32, normal: vec3<f32>, wi: vec3<f32>) -> f32 {
     if (params.volume_grid.w == GUIDE_VOLUME) { return volume_pdf(region, normal, wi); }
+    if (params.volume_grid.w == GUIDE_MIXTURE) { return mixture_pdf(region, wi); }
     return grid_pdf(region, wi);
 }
 
 fn guide_sample(region: u32, normal: vec3<f32>, u: vec2<f32>) -> GuideSample {
     if (params.volume_grid.w == GUIDE_VOLUME) { return volume_sample(region, normal, u); }
+    if (params.volume_grid.w == GUIDE_MIXTURE) { return mixture_sample(region, u); }
     return grid_sample(region, u);
 }
 
@@ -876,9 +1041,14 @@ fn add_to_lambertian_sum(probe: u32, value: f32) {
     }
 }
 
-// Eq. (1) with the guide's rule: Q' = (1 − α)Q + α·target, above the floor.
-fn guide_update(region: u32, wi: vec3<f32>, goal: f32) {
+// Eq. (1) with the guide's rule: Q' = (1 − α)Q + α·target, above the floor; the
+// mixture's batch sums instead (which need the direction's sampling pdf).
+fn guide_update(region: u32, wi: vec3<f32>, goal: f32, pdf: f32) {
     if (!(goal >= 0.0 && goal < INFINITY)) { return; }
+    if (params.volume_grid.w == GUIDE_MIXTURE) {
+        mixture_update(region, wi, goal, pdf);
+        return;
+    }
     let entry = guide_patch(region, wi);
     if (entry >= params.guide.w) { return; }
     let index = region * params.guide.w + entry;
@@ -911,6 +1081,7 @@ fn guide_update(region: u32, wi: vec3<f32>, goal: f32) {
 // (volume) for diffuse surfaces, one BSDF sample for glossy ones
 // (IntegralEstimator::BsdfSampled).
 fn guide_integral(region: u32, m: Material, shading: Shading, wo_local: vec3<f32>, u: vec2<f32>, u_lobe: f32) -> f32 {
+    if (params.volume_grid.w == GUIDE_MIXTURE) { return mixture_integral(region, m, shading, wo_local, u); }
     if (m.kind == DIFFUSE) {
         if (params.volume_grid.w == GUIDE_VOLUME) {
             return luminance(m.albedo.xyz) * sh_cosine_integral(region, shading.frame.normal);
@@ -995,6 +1166,7 @@ struct LearningVertex {
     onward: f32,
     arriving: f32,
     direction: vec3<f32>,
+    pdf: f32,
 };
 
 var<private> path: array<LearningVertex, MAX_VERTICES>;
@@ -1181,6 +1353,7 @@ fn trace(@builtin(global_invocation_id) id: vec3<u32>) {
             path[count].onward = 0.0;
             path[count].arriving = 0.0;
             path[count].direction = wi;
+            path[count].pdf = pdf;
             count += 1u;
         }
         previous_point = point;
@@ -1197,7 +1370,7 @@ fn trace(@builtin(global_invocation_id) id: vec3<u32>) {
         if (v.onward_kind == ONWARD_INTEGRAL) { onward = v.onward; }
         if (v.onward_kind == ONWARD_CARRY) { onward = v.onward * next_target; }
         let goal = v.arriving + onward;
-        if (v.probe != NO_PROBE) { guide_update(v.probe, v.direction, goal); }
+        if (v.probe != NO_PROBE) { guide_update(v.probe, v.direction, goal, v.pdf); }
         next_target = goal;
     }
     pass_image[pixel] = vec4<f32>(radiance, 1.0);
