@@ -115,179 +115,30 @@ fn unsupported_scenes_are_refused_with_a_reason() {
     assert!(error.contains("image environment"), "{error}");
 }
 
-fn hemisphere(probes: usize) -> reference_tracer::directional_guide::DirectionalGuideSettings {
+// ---------------------------------------------------------------------------------
+// Guided rendering on the GPU, for each of the three directional guides.
+
+use glam::Vec3;
+use guiding_core::validation::{chi_square_test, ChiSquareReport, ChiSquareSettings};
+use guiding_core::{
+    DirectionSample, DirectionalDistribution, GaussianMixture, GaussianMixtureSettings, HemisphereGrid,
+    IrradianceVolume, IrradianceVolumeSettings, MixtureRegion, ProbeId, VolumeRegion,
+};
+use reference_tracer::directional_guide::{DirectionalGuide, DirectionalGuideSettings};
+use reference_tracer::gpu::{GpuGuide, GpuTracer};
+
+fn hemisphere(probes: usize) -> DirectionalGuideSettings {
     guiding_core::HemisphereGridSettings { probe_count: Some(probes), ..Default::default() }.into()
 }
-
-/// Renders `scene` with a fresh hemisphere grid of `probes` probes on `device`; returns
-/// the render and the grid it learned.
-fn render_guided(
-    scene: &Path,
-    device: Device,
-    method: Method,
-    spp: u32,
-    seed: u64,
-    probes: usize,
-) -> (RenderStatistics, guiding_core::HemisphereGrid) {
-    let (integrator, lights) = (integrator(method), power_lights());
-    let mut prepared =
-        prepare_with_lights(scene, IntersectorChoice::default(), Some(hemisphere(probes)), lights).unwrap();
-    prepared.device = device;
-    let settings = RenderSettings { integrator, budget: Budget::SamplesPerPixel(spp), seed, train_seconds: 0.0 };
-    let (_, statistics) = prepared.render(&settings, |_| {}).unwrap();
-    let Some(reference_tracer::directional_guide::DirectionalGuide::Hemisphere(grid)) = prepared.guide else {
-        panic!("a hemisphere grid was built")
-    };
-    (statistics, *grid)
-}
-
-#[test]
-fn guided_methods_on_the_gpu_agree_with_cpu_nee() {
-    if !adapter_available("guided") {
-        return;
-    }
-    for (name, width, height, spp) in [("cornell", 32, 32, 96), ("door", 32, 24, 256)] {
-        let scene = support::repository_scene(name, width, height);
-        let (_, nee) = render(&scene, Device::Cpu, Method::Nee, spp * 2, 9);
-        let reference = support::mean_estimate(&nee);
-        for method in [Method::GuidedNee, Method::Guided] {
-            let spp = if method == Method::Guided { spp * 4 } else { spp };
-            let (statistics, grid) = render_guided(&scene, Device::Gpu, method, spp, 11, 400);
-            let label = format!("{name} gpu:{} vs cpu nee", method.name());
-            support::assert_agree(&label, &support::mean_estimate(&statistics), &reference);
-            assert!(grid.stats().accepted_updates > 0, "{label}: the GPU learned nothing");
-            assert!(grid.validate().is_ok(), "{label}");
-        }
-    }
-}
-
-/// Directions drawn on the GPU, replayed as a distribution whose pdf is guiding-core's.
-struct GpuSamples<'a> {
-    samples: Vec<[f32; 4]>,
-    next: std::cell::Cell<usize>,
-    cpu: guiding_core::hemisphere::ProbeDistribution<'a>,
-}
-
-impl guiding_core::DirectionalDistribution for GpuSamples<'_> {
-    fn sample(&self, _u: glam::Vec2) -> guiding_core::DirectionSample {
-        let [x, y, z, pdf] = self.samples[self.next.get() % self.samples.len()];
-        self.next.set(self.next.get() + 1);
-        guiding_core::DirectionSample { direction: glam::Vec3::new(x, y, z), pdf }
-    }
-
-    fn pdf(&self, direction: glam::Vec3) -> f32 {
-        self.cpu.pdf(direction)
-    }
-}
-
-#[test]
-fn the_gpu_sampler_matches_guiding_cores_pdf() {
-    if !adapter_available("sampler") {
-        return;
-    }
-    use guiding_core::validation::{chi_square_test, ChiSquareSettings};
-    // A grid learned on the CPU, uploaded, sampled on the GPU.
-    let scene = support::repository_scene("cornell", 24, 24);
-    let (_, grid) = render_guided(&scene, Device::Cpu, Method::GuidedNee, 16, 5, 200);
-    let prepared = prepare_with_lights(&scene, IntersectorChoice::default(), None, power_lights()).unwrap();
-    let integrator = IntegratorSettings { method: Method::GuidedNee, ..Default::default() };
-    let mut gpu = reference_tracer::gpu::GpuTracer::new(
-        GpuContext::new().unwrap(),
-        &prepared.scene,
-        &integrator,
-        Some((&grid).into()),
-    )
-    .unwrap();
-    // The most-visited probe has the least uniform distribution.
-    let visits = grid.probe_visit_counts();
-    let probe = (0..grid.probe_count()).max_by_key(|&p| visits[p].load(std::sync::atomic::Ordering::Relaxed)).unwrap();
-    let settings = ChiSquareSettings::default();
-    let normal = grid.probe_normals()[probe];
-    let samples = gpu.sample_guide(probe as u32, normal, settings.samples, 17).unwrap();
-    let region = guiding_core::ProbeId(probe as u32);
-    let distribution = GpuSamples { samples, next: std::cell::Cell::new(0), cpu: grid.distribution(region) };
-    let report = chi_square_test(&distribution, normal, &settings);
-    eprintln!("GPU sampler, probe {probe}: {report:?}");
-    assert!(report.passes(0.01), "{report:?}");
-}
-
-/// Σ_k Q_k of each probe that learned in both grids.
-fn probe_totals(grid: &guiding_core::HemisphereGrid) -> Vec<f64> {
-    let n = grid.patch_count();
-    grid.q_values()
-        .chunks_exact(n)
-        .map(|row| row.iter().map(|q| f32::from_bits(q.load(std::sync::atomic::Ordering::Relaxed)) as f64).sum())
-        .collect()
-}
-
-/// Mean squared relative difference of per-probe totals over probes with visits in both.
-fn table_difference(a: &guiding_core::HemisphereGrid, b: &guiding_core::HemisphereGrid) -> f64 {
-    let (ta, tb) = (probe_totals(a), probe_totals(b));
-    let (va, vb) = (a.probe_visit_counts(), b.probe_visit_counts());
-    let visited = |p: usize| {
-        va[p].load(std::sync::atomic::Ordering::Relaxed) > 200 && vb[p].load(std::sync::atomic::Ordering::Relaxed) > 200
-    };
-    let terms: Vec<f64> =
-        (0..ta.len()).filter(|&p| visited(p)).map(|p| ((ta[p] - tb[p]) / (0.5 * (ta[p] + tb[p]))).powi(2)).collect();
-    assert!(terms.len() > 20, "too few probes learned: {}", terms.len());
-    terms.iter().sum::<f64>() / terms.len() as f64
-}
-
-#[test]
-fn gpu_and_cpu_learn_the_same_q_tables() {
-    if !adapter_available("learning") {
-        return;
-    }
-    // The same probes (placement is deterministic), taught by the same method and spp.
-    let scene = support::repository_scene("cornell", 32, 32);
-    let (_, cpu) = render_guided(&scene, Device::Cpu, Method::GuidedNee, 48, 21, 200);
-    let (_, cpu_again) = render_guided(&scene, Device::Cpu, Method::GuidedNee, 48, 22, 200);
-    let (_, gpu) = render_guided(&scene, Device::Gpu, Method::GuidedNee, 48, 23, 200);
-    assert_eq!(gpu.probe_positions(), cpu.probe_positions());
-    let noise = table_difference(&cpu_again, &cpu);
-    let between = table_difference(&gpu, &cpu);
-    eprintln!("per-probe Q totals: GPU vs CPU {between:.4e}, CPU vs CPU {noise:.4e}");
-    assert!(between <= 2.0 * noise + 1e-6, "GPU vs CPU {between} against CPU vs CPU {noise}");
-    let updates = |g: &guiding_core::HemisphereGrid| g.stats().accepted_updates as f64;
-    let ratio = updates(&gpu) / updates(&cpu);
-    assert!((ratio - 1.0).abs() < 0.05, "updates: GPU {} vs CPU {}", updates(&gpu), updates(&cpu));
-}
-
-#[test]
-fn a_gpu_learned_guide_saves_loads_and_guides_the_cpu_tracer() {
-    if !adapter_available("round trip") {
-        return;
-    }
-    let scene = support::repository_scene("cornell", 32, 32);
-    let (_, grid) = render_guided(&scene, Device::Gpu, Method::GuidedNee, 32, 31, 300);
-    let bytes = grid.to_bytes();
-    let loaded = guiding_core::HemisphereGrid::from_bytes(&bytes).unwrap();
-    assert!(loaded.validate().is_ok());
-    assert_eq!(loaded.to_bytes(), bytes, "the GPU's learned state round-trips exactly");
-    // The CPU tracer renders with it, learning nothing more, and stays unbiased.
-    let guide = Some(hemisphere(300));
-    let mut prepared = prepare_with_lights(&scene, IntersectorChoice::default(), guide, power_lights()).unwrap();
-    prepared.guide = Some(reference_tracer::directional_guide::DirectionalGuide::Hemisphere(Box::new(loaded)));
-    let integrator = IntegratorSettings { method: Method::GuidedNee, learn: false, ..Default::default() };
-    let settings = RenderSettings { integrator, budget: Budget::SamplesPerPixel(96), seed: 32, train_seconds: 0.0 };
-    let (_, guided) = prepared.render(&settings, |_| {}).unwrap();
-    let (_, nee) = render(&scene, Device::Cpu, Method::Nee, 192, 33);
-    support::assert_agree(
-        "cpu guided-nee with the GPU's guide vs nee",
-        &support::mean_estimate(&guided),
-        &support::mean_estimate(&nee),
-    );
-}
-
-// ---------------------------------------------------------------------------------
-// The irradiance volume on the GPU.
-
-use guiding_core::{IrradianceVolume, IrradianceVolumeSettings, VolumeRegion};
-use reference_tracer::directional_guide::DirectionalGuide;
 
 /// A volume of `budget_kib` KiB whose leaves split after `split` updates per patch.
 fn volume(budget_kib: usize, split: f32) -> IrradianceVolumeSettings {
     IrradianceVolumeSettings { budget_bytes: budget_kib << 10, split_updates_per_patch: split, ..Default::default() }
+}
+
+/// A mixture of 0.5 MiB.
+fn mixture() -> GaussianMixtureSettings {
+    GaussianMixtureSettings { budget_bytes: 512 << 10, ..Default::default() }
 }
 
 /// Renders `scene` with a fresh directional guide built from `settings` on `device`;
@@ -298,7 +149,7 @@ fn render_learning(
     method: Method,
     spp: u32,
     seed: u64,
-    settings: reference_tracer::directional_guide::DirectionalGuideSettings,
+    settings: DirectionalGuideSettings,
 ) -> (RenderStatistics, DirectionalGuide) {
     let (integrator, lights) = (integrator(method), power_lights());
     let mut prepared = prepare_with_lights(scene, IntersectorChoice::default(), Some(settings), lights).unwrap();
@@ -306,6 +157,21 @@ fn render_learning(
     let settings = RenderSettings { integrator, budget: Budget::SamplesPerPixel(spp), seed, train_seconds: 0.0 };
     let (_, statistics) = prepared.render(&settings, |_| {}).unwrap();
     (statistics, prepared.guide.expect("a guide was built"))
+}
+
+/// [`render_learning`] with a hemisphere grid of `probes` probes.
+fn render_guided(
+    scene: &Path,
+    device: Device,
+    method: Method,
+    spp: u32,
+    seed: u64,
+    probes: usize,
+) -> (RenderStatistics, HemisphereGrid) {
+    match render_learning(scene, device, method, spp, seed, hemisphere(probes)) {
+        (statistics, DirectionalGuide::Hemisphere(grid)) => (statistics, *grid),
+        _ => panic!("a hemisphere grid was built"),
+    }
 }
 
 /// [`render_learning`] with an irradiance volume.
@@ -323,152 +189,7 @@ fn render_with_volume(
     }
 }
 
-#[test]
-fn the_volume_guides_on_the_gpu_without_bias_and_splits_like_the_cpu() {
-    if !adapter_available("volume") {
-        return;
-    }
-    for (name, width, height, spp) in [("cornell", 32, 32, 96), ("door", 32, 24, 256)] {
-        let scene = support::repository_scene(name, width, height);
-        let (_, nee) = render(&scene, Device::Cpu, Method::Nee, spp * 2, 41);
-        let reference = support::mean_estimate(&nee);
-        let settings = volume(256, 8.0);
-        let fresh = prepare_with_lights(&scene, IntersectorChoice::default(), Some(settings.into()), power_lights());
-        let Some(DirectionalGuide::Volume(fresh)) = fresh.unwrap().guide else { panic!("a volume was built") };
-        let initial_leaves = fresh.leaf_count();
-        for method in [Method::GuidedNee, Method::Guided] {
-            let spp = if method == Method::Guided { spp * 4 } else { spp };
-            let (statistics, gpu) = render_with_volume(&scene, Device::Gpu, method, spp, 43, settings);
-            let (_, cpu) = render_with_volume(&scene, Device::Cpu, method, spp, 44, settings);
-            let label = format!("{name} gpu:{} with a volume vs cpu nee", method.name());
-            support::assert_agree(&label, &support::mean_estimate(&statistics), &reference);
-            assert!(gpu.validate().is_ok(), "{label}");
-            assert!(gpu.memory_bytes() <= settings.budget_bytes, "{label}: {} bytes", gpu.memory_bytes());
-            // Leaves split on the host between GPU passes, as many as on the CPU.
-            let (g, c) = (gpu.leaf_count(), cpu.leaf_count());
-            eprintln!("{label}: leaves GPU {g}, CPU {c} (from {initial_leaves})");
-            assert!(g > initial_leaves, "{label}: no leaf split");
-            assert!((g as f64 / c as f64 - 1.0).abs() < 0.1, "{label}: leaves GPU {g} vs CPU {c}");
-            let ratio = gpu.stats().accepted_updates as f64 / cpu.stats().accepted_updates as f64;
-            assert!((ratio - 1.0).abs() < 0.05, "{label}: updates GPU/CPU {ratio}");
-        }
-    }
-}
-
-/// Directions drawn on the GPU from a volume leaf, replayed with guiding-core's pdf.
-struct GpuVolumeSamples<'a> {
-    samples: Vec<[f32; 4]>,
-    next: std::cell::Cell<usize>,
-    cpu: guiding_core::volume::VolumeDistribution<'a>,
-}
-
-impl guiding_core::DirectionalDistribution for GpuVolumeSamples<'_> {
-    fn sample(&self, _u: glam::Vec2) -> guiding_core::DirectionSample {
-        let [x, y, z, pdf] = self.samples[self.next.get() % self.samples.len()];
-        self.next.set(self.next.get() + 1);
-        guiding_core::DirectionSample { direction: glam::Vec3::new(x, y, z), pdf }
-    }
-
-    fn pdf(&self, direction: glam::Vec3) -> f32 {
-        self.cpu.pdf(direction)
-    }
-}
-
-#[test]
-fn the_gpu_volume_sampler_matches_guiding_cores_folded_pdf() {
-    if !adapter_available("volume sampler") {
-        return;
-    }
-    use guiding_core::validation::{chi_square_test, ChiSquareSettings};
-    let scene = support::repository_scene("cornell", 24, 24);
-    let (_, learned) = render_with_volume(&scene, Device::Cpu, Method::GuidedNee, 16, 45, volume(256, 8.0));
-    let prepared = prepare_with_lights(&scene, IntersectorChoice::default(), None, power_lights()).unwrap();
-    let integrator = IntegratorSettings { method: Method::GuidedNee, ..Default::default() };
-    let mut gpu = reference_tracer::gpu::GpuTracer::new(
-        GpuContext::new().unwrap(),
-        &prepared.scene,
-        &integrator,
-        Some((&learned).into()),
-    )
-    .unwrap();
-    let visits = learned.leaf_visit_counts();
-    let leaf = (0..learned.leaf_count()).max_by_key(|&l| visits[l].load(std::sync::atomic::Ordering::Relaxed)).unwrap();
-    // Folded about a normal off every axis, so both halves of the sphere contribute.
-    let normal = glam::Vec3::new(0.3, 0.8, -0.52).normalize();
-    let settings = ChiSquareSettings::default();
-    let samples = gpu.sample_guide(leaf as u32, normal, settings.samples, 19).unwrap();
-    let region = VolumeRegion { leaf: leaf as u32, normal };
-    let cpu = learned.distribution(region);
-    for s in samples.iter().take(1000) {
-        let direction = glam::Vec3::new(s[0], s[1], s[2]);
-        let expected = guiding_core::DirectionalDistribution::pdf(&cpu, direction);
-        assert!((s[3] - expected).abs() <= 1e-3 * expected, "GPU pdf {} vs CPU {expected}", s[3]);
-    }
-    let distribution = GpuVolumeSamples { samples, next: std::cell::Cell::new(0), cpu };
-    let report = chi_square_test(&distribution, normal, &settings);
-    eprintln!("GPU volume sampler, leaf {leaf}: {report:?}");
-    assert!(report.passes(0.01), "{report:?}");
-}
-
-/// Σ_k Q_k of each leaf visited more than 200 times in both volumes, as pairs.
-fn leaf_totals(a: &IrradianceVolume, b: &IrradianceVolume) -> Vec<(f64, f64)> {
-    let n = a.patch_count();
-    let total = |v: &IrradianceVolume, leaf: usize| -> f64 { (0..n).map(|k| v.q(leaf as u32, k) as f64).sum() };
-    let visits =
-        |v: &IrradianceVolume, leaf: usize| v.leaf_visit_counts()[leaf].load(std::sync::atomic::Ordering::Relaxed);
-    (0..a.leaf_count())
-        .filter(|&l| visits(a, l) > 200 && visits(b, l) > 200)
-        .map(|l| (total(a, l), total(b, l)))
-        .collect()
-}
-
-fn volume_difference(a: &IrradianceVolume, b: &IrradianceVolume) -> f64 {
-    let pairs = leaf_totals(a, b);
-    assert!(pairs.len() > 20, "too few leaves learned: {}", pairs.len());
-    pairs.iter().map(|(x, y)| ((x - y) / (0.5 * (x + y))).powi(2)).sum::<f64>() / pairs.len() as f64
-}
-
-#[test]
-fn gpu_and_cpu_learn_the_same_volume_tables() {
-    if !adapter_available("volume learning") {
-        return;
-    }
-    // No splitting, so both keep the same leaves and the tables compare one to one.
-    let settings = volume(512, 1e9);
-    let scene = support::repository_scene("cornell", 32, 32);
-    let (_, cpu) = render_with_volume(&scene, Device::Cpu, Method::GuidedNee, 48, 51, settings);
-    let (_, cpu_again) = render_with_volume(&scene, Device::Cpu, Method::GuidedNee, 48, 52, settings);
-    let (_, gpu) = render_with_volume(&scene, Device::Gpu, Method::GuidedNee, 48, 53, settings);
-    assert_eq!(gpu.nodes(), cpu.nodes());
-    let noise = volume_difference(&cpu_again, &cpu);
-    let between = volume_difference(&gpu, &cpu);
-    eprintln!("per-leaf Q totals: GPU vs CPU {between:.4e}, CPU vs CPU {noise:.4e}");
-    assert!(between <= 2.0 * noise + 1e-6, "GPU vs CPU {between} against CPU vs CPU {noise}");
-    // The GPU's volume saves, loads and renders on the CPU without bias.
-    let bytes = gpu.to_bytes();
-    let loaded = IrradianceVolume::from_bytes(&bytes).unwrap();
-    assert_eq!(loaded.to_bytes(), bytes, "the GPU's learned volume round-trips exactly");
-    let mut prepared =
-        prepare_with_lights(&scene, IntersectorChoice::default(), Some(settings.into()), power_lights()).unwrap();
-    prepared.guide = Some(DirectionalGuide::Volume(loaded));
-    let integrator = IntegratorSettings { method: Method::GuidedNee, learn: false, ..Default::default() };
-    let render_settings =
-        RenderSettings { integrator, budget: Budget::SamplesPerPixel(96), seed: 54, train_seconds: 0.0 };
-    let (_, guided) = prepared.render(&render_settings, |_| {}).unwrap();
-    let (_, nee) = render(&scene, Device::Cpu, Method::Nee, 192, 55);
-    support::assert_agree(
-        "cpu guided-nee with the GPU's volume vs nee",
-        &support::mean_estimate(&guided),
-        &support::mean_estimate(&nee),
-    );
-}
-
-// ---------------------------------------------------------------------------------
-// The Gaussian mixture on the GPU.
-
-use guiding_core::{GaussianMixture, GaussianMixtureSettings, MixtureRegion};
-
-/// [`render_learning`] with a Gaussian mixture of 0.5 MiB.
+/// [`render_learning`] with a Gaussian mixture.
 fn render_with_mixture(
     scene: &Path,
     device: Device,
@@ -476,11 +197,74 @@ fn render_with_mixture(
     spp: u32,
     seed: u64,
 ) -> (RenderStatistics, GaussianMixture) {
-    let settings = GaussianMixtureSettings { budget_bytes: 512 << 10, ..Default::default() };
-    match render_learning(scene, device, method, spp, seed, settings.into()) {
+    match render_learning(scene, device, method, spp, seed, mixture().into()) {
         (statistics, DirectionalGuide::Mixture(mixture)) => (statistics, mixture),
         _ => panic!("a mixture was built"),
     }
+}
+
+/// On cornell and door, for guided-nee and guided: renders on the GPU with `render`
+/// (given device, method, spp, seed), checks the mean against CPU nee within 4 standard
+/// errors, and hands the learned guide to `check` with its label, method and spp.
+fn guided_renders_agree_with_cpu_nee<G>(
+    seed: u64,
+    render_with: impl Fn(&Path, Device, Method, u32, u64) -> (RenderStatistics, G),
+    mut check: impl FnMut(&str, &Path, Method, u32, &G),
+) {
+    for (name, width, height, spp) in [("cornell", 32, 32, 96), ("door", 32, 24, 256)] {
+        let scene = support::repository_scene(name, width, height);
+        let (_, nee) = render(&scene, Device::Cpu, Method::Nee, spp * 2, seed);
+        let reference = support::mean_estimate(&nee);
+        for method in [Method::GuidedNee, Method::Guided] {
+            let spp = if method == Method::Guided { spp * 4 } else { spp };
+            let (statistics, guide) = render_with(&scene, Device::Gpu, method, spp, seed + 1);
+            let label = format!("{name} gpu:{} vs cpu nee", method.name());
+            support::assert_agree(&label, &support::mean_estimate(&statistics), &reference);
+            check(&label, &scene, method, spp, &guide);
+        }
+    }
+}
+
+/// Accepted updates of `gpu` over `cpu`'s: within 5 % of one.
+fn assert_updates_alike(label: &str, gpu: &impl Guide, cpu: &impl Guide) {
+    let ratio = gpu.stats().accepted_updates as f64 / cpu.stats().accepted_updates as f64;
+    eprintln!("{label}: updates GPU/CPU {ratio:.4}");
+    assert!((ratio - 1.0).abs() < 0.05, "{label}: updates GPU/CPU {ratio}");
+}
+
+#[test]
+fn guided_methods_on_the_gpu_agree_with_cpu_nee() {
+    if !adapter_available("guided") {
+        return;
+    }
+    let render_with = |scene: &Path, device, method, spp, seed| render_guided(scene, device, method, spp, seed, 400);
+    guided_renders_agree_with_cpu_nee(9, render_with, |label, _, _, _, grid| {
+        assert!(grid.stats().accepted_updates > 0, "{label}: the GPU learned nothing");
+        assert!(grid.validate().is_ok(), "{label}");
+    });
+}
+
+#[test]
+fn the_volume_guides_on_the_gpu_without_bias_and_splits_like_the_cpu() {
+    if !adapter_available("volume") {
+        return;
+    }
+    let settings = volume(256, 8.0);
+    let render_with =
+        |scene: &Path, device, method, spp, seed| render_with_volume(scene, device, method, spp, seed, settings);
+    guided_renders_agree_with_cpu_nee(41, render_with, |label, scene, method, spp, gpu| {
+        let (_, cpu) = render_with(scene, Device::Cpu, method, spp, 44);
+        let fresh = prepare_with_lights(scene, IntersectorChoice::default(), Some(settings.into()), power_lights());
+        let Some(DirectionalGuide::Volume(fresh)) = fresh.unwrap().guide else { panic!("a volume was built") };
+        assert!(gpu.validate().is_ok(), "{label}");
+        assert!(gpu.memory_bytes() <= settings.budget_bytes, "{label}: {} bytes", gpu.memory_bytes());
+        // Leaves split on the host between GPU passes, as many as on the CPU.
+        let (g, c) = (gpu.leaf_count(), cpu.leaf_count());
+        eprintln!("{label}: leaves GPU {g}, CPU {c} (from {})", fresh.leaf_count());
+        assert!(g > fresh.leaf_count(), "{label}: no leaf split");
+        assert!((g as f64 / c as f64 - 1.0).abs() < 0.1, "{label}: leaves GPU {g} vs CPU {c}");
+        assert_updates_alike(label, gpu, &cpu);
+    });
 }
 
 #[test]
@@ -488,132 +272,225 @@ fn the_mixture_guides_on_the_gpu_without_bias_and_learns_like_the_cpu() {
     if !adapter_available("mixture") {
         return;
     }
-    for (name, width, height, spp) in [("cornell", 32, 32, 96), ("door", 32, 24, 256)] {
-        let scene = support::repository_scene(name, width, height);
-        let (_, nee) = render(&scene, Device::Cpu, Method::Nee, spp * 2, 61);
-        let reference = support::mean_estimate(&nee);
-        for method in [Method::GuidedNee, Method::Guided] {
-            let spp = if method == Method::Guided { spp * 4 } else { spp };
-            let (statistics, gpu) = render_with_mixture(&scene, Device::Gpu, method, spp, 63);
-            let (_, cpu) = render_with_mixture(&scene, Device::Cpu, method, spp, 64);
-            let label = format!("{name} gpu:{} with a mixture vs cpu nee", method.name());
-            support::assert_agree(&label, &support::mean_estimate(&statistics), &reference);
-            assert!(gpu.validate().is_ok(), "{label}");
-            assert_eq!(gpu.stats().epochs, cpu.stats().epochs, "{label}: one M-step per pass");
-            let ratio = gpu.stats().accepted_updates as f64 / cpu.stats().accepted_updates as f64;
-            eprintln!("{label}: updates GPU/CPU {ratio:.4}");
-            assert!((ratio - 1.0).abs() < 0.05, "{label}: updates GPU/CPU {ratio}");
-        }
-    }
+    guided_renders_agree_with_cpu_nee(61, render_with_mixture, |label, scene, method, spp, gpu| {
+        let (_, cpu) = render_with_mixture(scene, Device::Cpu, method, spp, 64);
+        assert!(gpu.validate().is_ok(), "{label}");
+        assert_eq!(gpu.stats().epochs, cpu.stats().epochs, "{label}: one M-step per pass");
+        assert_updates_alike(label, gpu, &cpu);
+    });
 }
 
-/// Directions drawn on the GPU from a mixture region, replayed with guiding-core's pdf.
-struct GpuMixtureSamples<'a> {
+/// Directions drawn on the GPU, replayed as a distribution whose pdf is guiding-core's.
+struct GpuSamples<D> {
     samples: Vec<[f32; 4]>,
     next: std::cell::Cell<usize>,
-    cpu: guiding_core::mixture::MixtureDistribution<'a>,
+    cpu: D,
 }
 
-impl guiding_core::DirectionalDistribution for GpuMixtureSamples<'_> {
-    fn sample(&self, _u: glam::Vec2) -> guiding_core::DirectionSample {
+impl<D: DirectionalDistribution> DirectionalDistribution for GpuSamples<D> {
+    fn sample(&self, _u: glam::Vec2) -> DirectionSample {
         let [x, y, z, pdf] = self.samples[self.next.get() % self.samples.len()];
         self.next.set(self.next.get() + 1);
-        guiding_core::DirectionSample { direction: glam::Vec3::new(x, y, z), pdf }
+        DirectionSample { direction: Vec3::new(x, y, z), pdf }
     }
 
-    fn pdf(&self, direction: glam::Vec3) -> f32 {
+    fn pdf(&self, direction: Vec3) -> f32 {
         self.cpu.pdf(direction)
     }
 }
 
-#[test]
-fn the_gpu_mixture_sampler_matches_guiding_cores_pdf() {
-    if !adapter_available("mixture sampler") {
-        return;
-    }
-    use guiding_core::validation::{chi_square_test, ChiSquareSettings};
+/// Uploads `guide` (learned on the CPU), draws 10⁶ directions from `region` on the GPU
+/// (about `normal` where the guide folds), checks each of the first thousand's pdf
+/// against `cpu` (guiding-core's distribution of that region), and bins them all
+/// about `axis` against `cpu`'s pdf.
+fn gpu_sampler_report<D: DirectionalDistribution>(
+    guide: GpuGuide<'_>,
+    region: u32,
+    normal: Vec3,
+    cpu: D,
+    axis: Vec3,
+) -> ChiSquareReport {
     let scene = support::repository_scene("cornell", 24, 24);
-    let (_, learned) = render_with_mixture(&scene, Device::Cpu, Method::GuidedNee, 32, 65);
     let prepared = prepare_with_lights(&scene, IntersectorChoice::default(), None, power_lights()).unwrap();
     let integrator = IntegratorSettings { method: Method::GuidedNee, ..Default::default() };
-    let mut gpu = reference_tracer::gpu::GpuTracer::new(
-        GpuContext::new().unwrap(),
-        &prepared.scene,
-        &integrator,
-        Some((&learned).into()),
-    )
-    .unwrap();
-    // The region that saw the most samples.
+    let mut gpu = GpuTracer::new(GpuContext::new().unwrap(), &prepared.scene, &integrator, Some(guide)).unwrap();
+    let settings = ChiSquareSettings::default();
+    let samples = gpu.sample_guide(region, normal, settings.samples, 17).unwrap();
+    for s in samples.iter().take(1000) {
+        let expected = cpu.pdf(Vec3::new(s[0], s[1], s[2]));
+        assert!((s[3] - expected).abs() <= 1e-3 * expected, "GPU pdf {} vs CPU {expected}", s[3]);
+    }
+    let report = chi_square_test(&GpuSamples { samples, next: std::cell::Cell::new(0), cpu }, axis, &settings);
+    eprintln!("GPU sampler, region {region}: {report:?}");
+    report
+}
+
+#[test]
+fn the_gpu_samplers_match_guiding_cores_pdfs() {
+    if !adapter_available("samplers") {
+        return;
+    }
+    let scene = support::repository_scene("cornell", 24, 24);
+    // The hemisphere grid: the most-visited probe has the least uniform distribution.
+    let (_, grid) = render_guided(&scene, Device::Cpu, Method::GuidedNee, 16, 5, 200);
+    let visits = grid.probe_visit_counts();
+    let probe = (0..grid.probe_count()).max_by_key(|&p| visits[p].load(std::sync::atomic::Ordering::Relaxed)).unwrap();
+    let normal = grid.probe_normals()[probe];
+    let cpu = grid.distribution(ProbeId(probe as u32));
+    assert!(gpu_sampler_report((&grid).into(), probe as u32, normal, cpu, normal).passes(0.01));
+    // The volume's most-visited leaf, folded about a normal off every axis so both
+    // halves of the sphere contribute.
+    let (_, learned) = render_with_volume(&scene, Device::Cpu, Method::GuidedNee, 16, 45, volume(256, 8.0));
+    let visits = learned.leaf_visit_counts();
+    let leaf = (0..learned.leaf_count()).max_by_key(|&l| visits[l].load(std::sync::atomic::Ordering::Relaxed)).unwrap();
+    let normal = Vec3::new(0.3, 0.8, -0.52).normalize();
+    let cpu = learned.distribution(VolumeRegion { leaf: leaf as u32, normal });
+    assert!(gpu_sampler_report((&learned).into(), leaf as u32, normal, cpu, normal).passes(0.01));
+    // The mixture region that saw the most samples, binned about its sharpest lobe.
+    let (_, learned) = render_with_mixture(&scene, Device::Cpu, Method::GuidedNee, 32, 65);
     let observations = |r: usize| learned.mixture(MixtureRegion(r as u32)).observations();
     let region = (0..learned.region_count()).max_by_key(|&r| observations(r)).unwrap();
     let m = learned.mixture(MixtureRegion(region as u32));
-    let sharpest = (0..m.lobe_count()).map(|k| m.lobe(k).0.concentration()).fold(0.0f32, f32::max);
-    eprintln!("region {region}: {} samples, largest κ {sharpest}", observations(region));
-    assert!(sharpest > 1.0, "the mixture learned no lobe");
-    let settings = ChiSquareSettings::default();
-    let samples = gpu.sample_guide(region as u32, glam::Vec3::Z, settings.samples, 23).unwrap();
+    let sharpest =
+        (0..m.lobe_count()).max_by(|&a, &b| m.lobe(a).0.concentration().total_cmp(&m.lobe(b).0.concentration()));
+    let (lobe, _) = m.lobe(sharpest.unwrap_or(0));
+    eprintln!("mixture region {region}: {} samples, largest κ {}", observations(region), lobe.concentration());
+    assert!(lobe.concentration() > 1.0, "the mixture learned no lobe");
     let cpu = learned.distribution(MixtureRegion(region as u32));
-    for s in samples.iter().take(1000) {
-        let expected = guiding_core::DirectionalDistribution::pdf(&cpu, glam::Vec3::new(s[0], s[1], s[2]));
-        assert!((s[3] - expected).abs() <= 1e-3 * expected, "GPU pdf {} vs CPU {expected}", s[3]);
-    }
-    let mean = cpu_lobe_mean(&learned, region);
-    let distribution = GpuMixtureSamples { samples, next: std::cell::Cell::new(0), cpu };
-    let report = chi_square_test(&distribution, mean, &settings);
-    eprintln!("GPU mixture sampler, region {region}: {report:?}");
-    assert!(report.passes(0.01), "{report:?}");
+    assert!(gpu_sampler_report((&learned).into(), region as u32, Vec3::Z, cpu, lobe.mean()).passes(0.01));
 }
 
-/// The mean of `region`'s sharpest lobe: the chi-square test's axis.
-fn cpu_lobe_mean(mixture: &GaussianMixture, region: usize) -> glam::Vec3 {
-    let m = mixture.mixture(MixtureRegion(region as u32));
-    let k = (0..m.lobe_count()).max_by(|&a, &b| m.lobe(a).0.concentration().total_cmp(&m.lobe(b).0.concentration()));
-    m.lobe(k.unwrap_or(0)).0.mean()
-}
-
-/// Mean squared relative difference of the regions' total weights S over regions
-/// both mixtures saw more than 200 samples in.
-fn mixture_difference(a: &GaussianMixture, b: &GaussianMixture) -> f64 {
-    let terms: Vec<f64> = (0..a.region_count() as u32)
-        .map(MixtureRegion)
-        .filter(|&r| a.mixture(r).observations() > 200 && b.mixture(r).observations() > 200)
-        .map(|r| {
-            let (x, y) = (a.mixture(r).total_weight() as f64, b.mixture(r).total_weight() as f64);
-            ((x - y) / (0.5 * (x + y))).powi(2)
-        })
+/// Mean squared relative difference of per-region totals over the regions both learned
+/// in: `totals` gives each region's total (or `None` where it saw too little).
+fn total_difference(a: &[Option<f64>], b: &[Option<f64>]) -> f64 {
+    let terms: Vec<f64> = a
+        .iter()
+        .zip(b)
+        .filter_map(|(x, y)| Some(((x.as_ref()? - y.as_ref()?) / (0.5 * (x.as_ref()? + y.as_ref()?))).powi(2)))
         .collect();
     assert!(terms.len() > 20, "too few regions learned: {}", terms.len());
     terms.iter().sum::<f64>() / terms.len() as f64
 }
 
-#[test]
-fn gpu_and_cpu_learn_the_same_mixtures_and_the_gpus_guides_the_cpu() {
-    if !adapter_available("mixture learning") {
-        return;
-    }
+/// Renders cornell three times with guided-nee (CPU, CPU again, GPU) from fresh guides,
+/// compares per-region totals GPU vs CPU against CPU vs CPU, and returns the GPU's guide.
+fn gpu_and_cpu_totals_agree<G>(
+    seed: u64,
+    render_with: impl Fn(&Path, Device, u64) -> G,
+    totals: impl Fn(&G) -> Vec<Option<f64>>,
+) -> G {
     let scene = support::repository_scene("cornell", 32, 32);
-    let (_, cpu) = render_with_mixture(&scene, Device::Cpu, Method::GuidedNee, 48, 71);
-    let (_, cpu_again) = render_with_mixture(&scene, Device::Cpu, Method::GuidedNee, 48, 72);
-    let (_, gpu) = render_with_mixture(&scene, Device::Gpu, Method::GuidedNee, 48, 73);
-    let noise = mixture_difference(&cpu_again, &cpu);
-    let between = mixture_difference(&gpu, &cpu);
-    eprintln!("per-region total weights: GPU vs CPU {between:.4e}, CPU vs CPU {noise:.4e}");
+    let cpu = render_with(&scene, Device::Cpu, seed);
+    let cpu_again = render_with(&scene, Device::Cpu, seed + 1);
+    let gpu = render_with(&scene, Device::Gpu, seed + 2);
+    let (cpu, cpu_again, gpu_totals) = (totals(&cpu), totals(&cpu_again), totals(&gpu));
+    let noise = total_difference(&cpu_again, &cpu);
+    let between = total_difference(&gpu_totals, &cpu);
+    eprintln!("per-region totals: GPU vs CPU {between:.4e}, CPU vs CPU {noise:.4e}");
     assert!(between <= 2.0 * noise + 1e-6, "GPU vs CPU {between} against CPU vs CPU {noise}");
-    let bytes = gpu.to_bytes();
-    let loaded = GaussianMixture::from_bytes(&bytes).unwrap();
-    assert_eq!(loaded.to_bytes(), bytes, "the GPU's learned mixture round-trips exactly");
-    let settings = GaussianMixtureSettings { budget_bytes: 512 << 10, ..Default::default() };
+    gpu
+}
+
+/// `bytes` (a GPU-learned guide) load into the guide `settings` builds, round-trip
+/// exactly, and guide the CPU tracer (learning off) to the nee mean within 4 SE.
+fn gpu_learned_guide_serves_the_cpu(settings: DirectionalGuideSettings, bytes: &[u8], seed: u64) {
+    let scene = support::repository_scene("cornell", 32, 32);
     let mut prepared =
-        prepare_with_lights(&scene, IntersectorChoice::default(), Some(settings.into()), power_lights()).unwrap();
-    prepared.guide = Some(DirectionalGuide::Mixture(loaded));
+        prepare_with_lights(&scene, IntersectorChoice::default(), Some(settings), power_lights()).unwrap();
+    let loaded = match prepared.guide.take().expect("a guide was built") {
+        DirectionalGuide::Hemisphere(_) => {
+            DirectionalGuide::Hemisphere(Box::new(HemisphereGrid::from_bytes(bytes).unwrap()))
+        }
+        DirectionalGuide::Volume(_) => DirectionalGuide::Volume(IrradianceVolume::from_bytes(bytes).unwrap()),
+        DirectionalGuide::Mixture(_) => DirectionalGuide::Mixture(GaussianMixture::from_bytes(bytes).unwrap()),
+    };
+    let again = match &loaded {
+        DirectionalGuide::Hemisphere(g) => g.to_bytes(),
+        DirectionalGuide::Volume(g) => g.to_bytes(),
+        DirectionalGuide::Mixture(g) => g.to_bytes(),
+    };
+    assert_eq!(again, bytes, "the GPU's learned state round-trips exactly");
+    prepared.guide = Some(loaded);
     let integrator = IntegratorSettings { method: Method::GuidedNee, learn: false, ..Default::default() };
-    let render_settings =
-        RenderSettings { integrator, budget: Budget::SamplesPerPixel(96), seed: 74, train_seconds: 0.0 };
+    let render_settings = RenderSettings { integrator, budget: Budget::SamplesPerPixel(96), seed, train_seconds: 0.0 };
     let (_, guided) = prepared.render(&render_settings, |_| {}).unwrap();
-    let (_, nee) = render(&scene, Device::Cpu, Method::Nee, 192, 75);
+    let (_, nee) = render(&scene, Device::Cpu, Method::Nee, 192, seed + 1);
     support::assert_agree(
-        "cpu guided-nee with the GPU's mixture vs nee",
+        "cpu guided-nee with the GPU's guide vs nee",
         &support::mean_estimate(&guided),
         &support::mean_estimate(&nee),
     );
+}
+
+fn learned(visits: u32) -> bool {
+    visits > 200
+}
+
+#[test]
+fn gpu_and_cpu_learn_the_same_q_tables_and_the_gpus_grid_serves_the_cpu() {
+    if !adapter_available("grid learning") {
+        return;
+    }
+    // The same probes (placement is deterministic), taught by the same method and spp.
+    let render_with = |scene: &Path, device, seed| render_guided(scene, device, Method::GuidedNee, 48, seed, 200).1;
+    let totals = |grid: &HemisphereGrid| {
+        let (n, visits) = (grid.patch_count(), grid.probe_visit_counts());
+        let q = |i: usize| f32::from_bits(grid.q_values()[i].load(std::sync::atomic::Ordering::Relaxed)) as f64;
+        (0..grid.probe_count())
+            .map(|p| {
+                learned(visits[p].load(std::sync::atomic::Ordering::Relaxed))
+                    .then(|| (0..n).map(|k| q(p * n + k)).sum())
+            })
+            .collect()
+    };
+    let gpu = gpu_and_cpu_totals_agree(21, render_with, totals);
+    let scene = support::repository_scene("cornell", 32, 32);
+    let cpu = render_with(&scene, Device::Cpu, 21);
+    assert_eq!(gpu.probe_positions(), cpu.probe_positions());
+    assert_updates_alike("grid", &gpu, &cpu);
+    assert!(gpu.validate().is_ok());
+    gpu_learned_guide_serves_the_cpu(hemisphere(200), &gpu.to_bytes(), 32);
+}
+
+#[test]
+fn gpu_and_cpu_learn_the_same_volume_tables_and_the_gpus_volume_serves_the_cpu() {
+    if !adapter_available("volume learning") {
+        return;
+    }
+    // No splitting, so both keep the same leaves and the tables compare one to one.
+    let settings = volume(512, 1e9);
+    let render_with =
+        |scene: &Path, device, seed| render_with_volume(scene, device, Method::GuidedNee, 48, seed, settings).1;
+    let totals = |v: &IrradianceVolume| {
+        let visits = v.leaf_visit_counts();
+        (0..v.leaf_count())
+            .map(|l| {
+                let seen = learned(visits[l].load(std::sync::atomic::Ordering::Relaxed));
+                seen.then(|| (0..v.patch_count()).map(|k| v.q(l as u32, k) as f64).sum())
+            })
+            .collect()
+    };
+    let gpu = gpu_and_cpu_totals_agree(51, render_with, totals);
+    let cpu = render_with(&support::repository_scene("cornell", 32, 32), Device::Cpu, 51);
+    assert_eq!(gpu.nodes(), cpu.nodes());
+    assert_updates_alike("volume", &gpu, &cpu);
+    gpu_learned_guide_serves_the_cpu(settings.into(), &gpu.to_bytes(), 54);
+}
+
+#[test]
+fn gpu_and_cpu_learn_the_same_mixtures_and_the_gpus_mixture_serves_the_cpu() {
+    if !adapter_available("mixture learning") {
+        return;
+    }
+    let render_with = |scene: &Path, device, seed| render_with_mixture(scene, device, Method::GuidedNee, 48, seed).1;
+    let totals = |m: &GaussianMixture| {
+        (0..m.region_count() as u32)
+            .map(|r| {
+                let mixture = m.mixture(MixtureRegion(r));
+                learned(mixture.observations()).then(|| mixture.total_weight() as f64)
+            })
+            .collect()
+    };
+    let gpu = gpu_and_cpu_totals_agree(71, render_with, totals);
+    gpu_learned_guide_serves_the_cpu(mixture().into(), &gpu.to_bytes(), 74);
 }

@@ -98,6 +98,16 @@ struct Params {
     sample_normal: [f32; 4],
 }
 
+impl Params {
+    /// The guide `kind` (GUIDE_*) and its grid of cells: cells per axis, low corner and
+    /// cells per unit length.
+    fn set_cell_grid(&mut self, kind: u32, [x, y, z]: [u32; 3], (low, inverse_cell_size): (Vec3, Vec3)) {
+        self.volume_grid = [x, y, z, kind];
+        self.volume_low = low.extend(0.0).to_array();
+        self.volume_scale = inverse_cell_size.extend(0.0).to_array();
+    }
+}
+
 /// `Params::volume_grid[3]`: which structure guides (the shader's GUIDE_*).
 const GUIDE_HEMISPHERE: u32 = 0;
 const GUIDE_VOLUME: u32 = 1;
@@ -233,21 +243,13 @@ impl GpuTracer {
             params.guide = [1, settings.learn as u32, volume.leaf_count() as u32, volume.patch_count() as u32];
             params.guide_shape = [s.layout.resolution[0], s.layout.resolution[1], 0, 0];
             params.guide_rule = [s.q_floor, 0.0, rate, parameter];
-            let [x, y, z] = volume.resolution();
-            params.volume_grid = [x, y, z, GUIDE_VOLUME];
-            let (low, inverse_cell_size) = volume.grid_transform();
-            params.volume_low = low.extend(0.0).to_array();
-            params.volume_scale = inverse_cell_size.extend(0.0).to_array();
+            params.set_cell_grid(GUIDE_VOLUME, volume.resolution(), volume.grid_transform());
         }
         if let Some(GpuGuide::Mixture(mixture)) = guide {
             let s = mixture.settings();
             params.guide = [1, settings.learn as u32, mixture.region_count() as u32, s.lobes as u32];
             params.guide_shape = [0, 0, s.regions_per_cell() as u32, 0];
-            let [x, y, z] = mixture.resolution();
-            params.volume_grid = [x, y, z, GUIDE_MIXTURE];
-            let (low, inverse_cell_size) = mixture.grid_transform();
-            params.volume_low = low.extend(0.0).to_array();
-            params.volume_scale = inverse_cell_size.extend(0.0).to_array();
+            params.set_cell_grid(GUIDE_MIXTURE, mixture.resolution(), mixture.grid_transform());
         }
         if let Some(GpuGuide::Hemisphere(grid)) = guide {
             let s = grid.settings();
