@@ -192,26 +192,47 @@ pub fn render<I: Intersector, G: Guide>(
             }
         }
         statistics.guide_rebuild_seconds += rebuild.elapsed().as_secs_f64();
-        let seconds = start.elapsed().as_secs_f64();
         let learns = settings.integrator.method.uses_guide()
             || settings.integrator.light_selection == LightSelection::Learned
             || learns_environment;
-        if learns && seconds < settings.train_seconds {
-            film.iter_mut().for_each(|p| *p = [0.0; 3]);
-            statistics.pass_means.clear();
-            statistics.passes = 0;
-            statistics.training_passes += 1;
-            continue;
-        }
-        on_pass(&Progress { passes: statistics.passes, seconds, film: &film, counters: statistics.counters });
-        if settings.budget.reached(statistics.passes, seconds) {
-            statistics.render_seconds = seconds;
+        if end_of_pass(&mut film, &mut statistics, settings, learns, start, &mut on_pass) {
             break;
         }
     }
-    let image = Progress { passes: statistics.passes, seconds: 0.0, film: &film, counters: statistics.counters }
-        .image(width, height);
-    (image, statistics)
+    (finished_image(&film, &statistics, width, height), statistics)
+}
+
+/// The bookkeeping after a pass has been added to `film` and `statistics`, shared by
+/// the CPU and GPU render loops: a training pass (`learns`, within
+/// `settings.train_seconds`) is discarded; otherwise `on_pass` sees the state. Returns
+/// whether the budget is reached.
+pub(crate) fn end_of_pass(
+    film: &mut [[f64; 3]],
+    statistics: &mut RenderStatistics,
+    settings: &RenderSettings,
+    learns: bool,
+    start: Instant,
+    on_pass: &mut impl FnMut(&Progress<'_>),
+) -> bool {
+    let seconds = start.elapsed().as_secs_f64();
+    if learns && seconds < settings.train_seconds {
+        film.iter_mut().for_each(|p| *p = [0.0; 3]);
+        statistics.pass_means.clear();
+        statistics.passes = 0;
+        statistics.training_passes += 1;
+        return false;
+    }
+    on_pass(&Progress { passes: statistics.passes, seconds, film, counters: statistics.counters });
+    if settings.budget.reached(statistics.passes, seconds) {
+        statistics.render_seconds = seconds;
+        return true;
+    }
+    false
+}
+
+/// The image of a finished progressive render: the film's mean over its passes.
+pub(crate) fn finished_image(film: &[[f64; 3]], statistics: &RenderStatistics, width: usize, height: usize) -> Image {
+    Progress { passes: statistics.passes, seconds: 0.0, film, counters: statistics.counters }.image(width, height)
 }
 
 /// SplitMix64's finaliser: a bijective mix in which every input bit affects every output bit.

@@ -494,3 +494,23 @@ fn gpu_and_cpu_learn_the_same_mixtures_and_the_gpus_mixture_serves_the_cpu() {
     let gpu = gpu_and_cpu_totals_agree(71, render_with, totals);
     gpu_learned_guide_serves_the_cpu(mixture().into(), &gpu.to_bytes(), 74);
 }
+
+#[test]
+fn gpu_training_passes_are_discarded_like_the_cpus() {
+    if !adapter_available("training") {
+        return;
+    }
+    let scene = support::repository_scene("cornell", 16, 16);
+    let mut prepared =
+        prepare_with_lights(&scene, IntersectorChoice::default(), Some(hemisphere(100)), power_lights()).unwrap();
+    prepared.device = Device::Gpu;
+    let settings = RenderSettings {
+        integrator: integrator(Method::GuidedNee),
+        budget: Budget::SamplesPerPixel(4),
+        seed: 81,
+        train_seconds: 0.5,
+    };
+    let (_, statistics) = prepared.render(&settings, |_| {}).unwrap();
+    assert!(statistics.training_passes > 0, "no training pass");
+    assert_eq!(statistics.passes, 4, "the kept passes are the budget's");
+}

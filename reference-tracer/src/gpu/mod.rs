@@ -67,7 +67,7 @@ use scene_buffers::SceneBuffers;
 use crate::environment::Sky;
 use crate::integrator::{IntegratorSettings, Method, PathCounters};
 use crate::output::Image;
-use crate::render::{pass_seed, Progress, RenderSettings, RenderStatistics};
+use crate::render::{end_of_pass, finished_image, pass_seed, Progress, RenderSettings, RenderStatistics};
 use crate::scene::Scene;
 
 /// The uniform block of `tracer.wgsl` (its `Params`).
@@ -108,6 +108,18 @@ impl Params {
     }
 }
 
+/// The compute pipeline of `tracer.wgsl`'s entry point `name` (layout from the shader).
+fn entry_point(device: &wgpu::Device, module: &wgpu::ShaderModule, name: &str) -> wgpu::ComputePipeline {
+    device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some(name),
+        layout: None,
+        module,
+        entry_point: Some(name),
+        compilation_options: Default::default(),
+        cache: None,
+    })
+}
+
 /// `Params::volume_grid[3]`: which structure guides (the shader's GUIDE_*).
 const GUIDE_HEMISPHERE: u32 = 0;
 const GUIDE_VOLUME: u32 = 1;
@@ -125,6 +137,8 @@ fn learning_rate_code(rate: LearningRate) -> (f32, f32) {
 /// A scene uploaded to a GPU, ready to render passes.
 pub struct GpuTracer {
     context: GpuContext,
+    /// `tracer.wgsl`, compiled once for every entry point.
+    module: wgpu::ShaderModule,
     pipeline: wgpu::ComputePipeline,
     bind_group: wgpu::BindGroup,
     rebuild: wgpu::ComputePipeline,
@@ -302,22 +316,8 @@ impl GpuTracer {
             label: Some("tracer.wgsl"),
             source: wgpu::ShaderSource::Wgsl(include_str!("tracer.wgsl").into()),
         });
-        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("trace"),
-            layout: None,
-            module: &module,
-            entry_point: Some("trace"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
-        let rebuild = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("rebuild"),
-            layout: None,
-            module: &module,
-            entry_point: Some("rebuild"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
+        let pipeline = entry_point(device, &module, "trace");
+        let rebuild = entry_point(device, &module, "rebuild");
         let storage = buffers.uploaded(device);
         let guide_buffers = GuideBuffers::new(device, guide);
         let g = &guide_buffers;
@@ -378,6 +378,7 @@ impl GpuTracer {
         });
         Ok(Self {
             context,
+            module,
             pipeline,
             bind_group,
             rebuild,
@@ -447,7 +448,8 @@ impl GpuTracer {
     }
 
     /// Renders progressively like [`crate::render::render`]: one pass per sample per
-    /// pixel until the budget; `on_pass` sees the state after every pass.
+    /// pixel until the budget, training passes (`settings.train_seconds`) discarded;
+    /// `on_pass` sees the state after every pass.
     pub fn render(
         &mut self,
         settings: &RenderSettings,
@@ -470,16 +472,12 @@ impl GpuTracer {
                 }
             }
             statistics.add_pass(sum, width * height, counters);
-            let seconds = start.elapsed().as_secs_f64();
-            on_pass(&Progress { passes: statistics.passes, seconds, film: &film, counters: statistics.counters });
-            if settings.budget.reached(statistics.passes, seconds) {
-                statistics.render_seconds = seconds;
+            let learns = settings.integrator.method.uses_guide() && self.params.guide[1] != 0;
+            if end_of_pass(&mut film, &mut statistics, settings, learns, start, &mut on_pass) {
                 break;
             }
         }
-        let image = Progress { passes: statistics.passes, seconds: 0.0, film: &film, counters: statistics.counters }
-            .image(width, height);
-        Ok((image, statistics))
+        Ok((finished_image(&film, &statistics, width, height), statistics))
     }
 
     /// Between passes: brings the leaf visit counts home, and when the volume's rule
@@ -577,18 +575,7 @@ impl GpuTracer {
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
             mapped_at_creation: false,
         });
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("tracer.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(include_str!("tracer.wgsl").into()),
-        });
-        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("sample_guide"),
-            layout: None,
-            module: &module,
-            entry_point: Some("sample_guide"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
+        let pipeline = entry_point(device, &self.module, "sample_guide");
         let entries = [
             wgpu::BindGroupEntry { binding: 0, resource: self.params_buffer.as_entire_binding() },
             wgpu::BindGroupEntry { binding: 11, resource: self.guide.normals.as_entire_binding() },
