@@ -38,7 +38,7 @@ fn brute_force(triangles: &[Triangle], ray: &Ray) -> Option<(u32, f32)> {
 
 fn brute_force_occluded(triangles: &[Triangle], ray: &Ray) -> bool {
     let sheared = ShearedRay::new(ray.origin, ray.direction);
-    triangles.iter().any(|t| sheared.intersect(t.vertices, ray.t_min, ray.t_max).is_some_and(|h| h.t < ray.t_max))
+    triangles.iter().any(|t| sheared.occludes_packed(&PackedTriangle::new(t.vertices), ray.t_min, ray.t_max))
 }
 
 fn random_unit(rng: &mut Pcg32) -> Vec3 {

@@ -22,6 +22,18 @@ pub struct ShearedRay {
     shear_z: f32,
 }
 
+/// e_kx, e_ky, e_kz for each dominant axis kz and sign of d_kz (index 2·kz + negative),
+/// with kx = kz + 1 and ky = kz + 2 (mod 3), swapped for a negative d_kz so the winding
+/// of the projected triangle does not depend on the ray's direction.
+const AXIS_PERMUTATIONS: [[Vec3A; 3]; 6] = [
+    [Vec3A::Y, Vec3A::Z, Vec3A::X],
+    [Vec3A::Z, Vec3A::Y, Vec3A::X],
+    [Vec3A::Z, Vec3A::X, Vec3A::Y],
+    [Vec3A::X, Vec3A::Z, Vec3A::Y],
+    [Vec3A::X, Vec3A::Y, Vec3A::Z],
+    [Vec3A::Y, Vec3A::X, Vec3A::Z],
+];
+
 /// A hit of [`ShearedRay::intersect`]: distance and barycentrics (b1, b2) of v1 and v2.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TriangleHit {
@@ -33,23 +45,22 @@ pub struct TriangleHit {
 
 impl ShearedRay {
     /// Prepares `origin + t·direction`; `direction` must be finite and non-zero.
-    pub fn new(origin: Vec3, direction: Vec3) -> Self {
-        let kz = direction.abs().max_position();
-        let mut kx = (kz + 1) % 3;
-        let mut ky = (kx + 1) % 3;
-        // Keep the winding of the projected triangle independent of the ray's direction.
-        if direction[kz] < 0.0 {
-            core::mem::swap(&mut kx, &mut ky);
-        }
+    #[inline]
+    pub fn new(origin: impl Into<Vec3A>, direction: impl Into<Vec3A>) -> Self {
+        // Random directions make every choice here a coin toss for the branch predictor,
+        // so the axes are picked by arithmetic on comparison bits and a table lookup.
+        let d: Vec3A = direction.into();
+        let a = d.abs();
+        let (y_over_x, z_over_y, z_over_x) = ((a.y > a.x) as usize, (a.z > a.y) as usize, (a.z > a.x) as usize);
+        // The dominant axis, ties to the lower index.
+        let kz = y_over_x * (1 + z_over_y) + (1 - y_over_x) * 2 * z_over_x;
+        let negative = (d.cmplt(Vec3A::ZERO).bitmask() as usize >> kz) & 1;
+        let [unit_x, unit_y, unit_z] = AXIS_PERMUTATIONS[2 * kz + negative];
+        // Dot products with unit axes are exact: these are d_kz, d_kx and d_ky.
         // One division per ray: the shear only has to be the same for every triangle.
-        let shear_z = 1.0 / direction[kz];
-        let (shear_x, shear_y) = (direction[kx] * shear_z, direction[ky] * shear_z);
-        let unit = |k: usize| Vec3A::from(Vec3::AXES[k]);
-        Self {
-            origin: origin.into(),
-            rows: [unit(kx) - shear_x * unit(kz), unit(ky) - shear_y * unit(kz), unit(kz)],
-            shear_z,
-        }
+        let shear_z = 1.0 / d.dot(unit_z);
+        let (shear_x, shear_y) = (d.dot(unit_x) * shear_z, d.dot(unit_y) * shear_z);
+        Self { origin: origin.into(), rows: [unit_x - shear_x * unit_z, unit_y - shear_y * unit_z, unit_z], shear_z }
     }
 
     /// The hit with `t_min < t ≤ t_max`, either side of the triangle, if any.
@@ -65,6 +76,38 @@ impl ShearedRay {
     /// triangle holding it).
     #[inline]
     pub fn intersect_packed(&self, triangle: &PackedTriangle, t_min: f32, t_max: f32) -> Option<TriangleHit> {
+        let (uvw, scaled_t, inside) = self.edge_test(triangle);
+        let determinant = uvw.x + uvw.y + uvw.z;
+        if !inside || determinant == 0.0 {
+            return None;
+        }
+        let inverse = 1.0 / determinant;
+        let t = scaled_t * inverse;
+        if !(t > t_min && t <= t_max) {
+            return None;
+        }
+        Some(TriangleHit { t, barycentrics: Vec2::new(uvw.y * inverse, uvw.z * inverse) })
+    }
+
+    /// Whether the ray meets the triangle at `t_min < t < t_max` (both ends open, so a
+    /// shadow ray ending on an emitter is not blocked by it): the test of
+    /// [`intersect_packed`](Self::intersect_packed) with t compared as t·det against the
+    /// ends scaled by the determinant, so no division, as the paper's occlusion test
+    /// does. A hit within an ulp or so of an end may be judged differently.
+    #[inline]
+    pub fn occludes_packed(&self, triangle: &PackedTriangle, t_min: f32, t_max: f32) -> bool {
+        let (uvw, scaled_t, inside) = self.edge_test(triangle);
+        let determinant = uvw.x + uvw.y + uvw.z;
+        // t = scaled_t / det: flip both by det's sign so the comparisons need no division.
+        let sign = determinant.to_bits() & 0x8000_0000;
+        let (t_det, det) = (f32::from_bits(scaled_t.to_bits() ^ sign), determinant.abs());
+        inside & (t_det > t_min * det) & (t_det < t_max * det) & (determinant != 0.0)
+    }
+
+    /// The edge functions (u, v, w) of the projected triangle, t·det, and whether the
+    /// ray passes inside (or on) every edge: all of u, v, w of one sign or zero.
+    #[inline(always)]
+    fn edge_test(&self, triangle: &PackedTriangle) -> (Vec3A, f32, bool) {
         let [row_x, row_y, row_z] = self.rows;
         let o = self.origin;
         let (x, y, z) =
@@ -79,21 +122,9 @@ impl ShearedRay {
             let edge = |i: usize, j: usize| (px[i] as f64 * py[j] as f64 - py[i] as f64 * px[j] as f64) as f32;
             uvw = Vec3A::new(edge(2, 1), edge(0, 2), edge(1, 0));
         }
-        if uvw.cmplt(Vec3A::ZERO).any() && uvw.cmpgt(Vec3A::ZERO).any() {
-            return None;
-        }
-        let determinant = uvw.x + uvw.y + uvw.z;
-        if determinant == 0.0 {
-            return None;
-        }
+        let inside = !(uvw.cmplt(Vec3A::ZERO).any() & uvw.cmpgt(Vec3A::ZERO).any());
         let weighted = uvw * project(row_z);
-        let scaled_t = self.shear_z * (weighted.x + weighted.y + weighted.z);
-        let inverse = 1.0 / determinant;
-        let t = scaled_t * inverse;
-        if !(t > t_min && t <= t_max) {
-            return None;
-        }
-        Some(TriangleHit { t, barycentrics: Vec2::new(uvw.y * inverse, uvw.z * inverse) })
+        (uvw, self.shear_z * (weighted.x + weighted.y + weighted.z), inside)
     }
 }
 
@@ -214,6 +245,91 @@ mod tests {
             hits += packed.is_some() as u32;
         }
         assert!(hits > 30_000, "{hits} hits");
+    }
+
+    /// The paper's axis choice, by indexing: kz the largest |d| (ties to the lower axis),
+    /// kx and ky the next two, swapped when d_kz < 0.
+    fn paper_shear(origin: Vec3, direction: Vec3) -> ShearedRay {
+        let kz = direction.abs().max_position();
+        let (mut kx, mut ky) = ((kz + 1) % 3, (kz + 2) % 3);
+        if direction[kz] < 0.0 {
+            core::mem::swap(&mut kx, &mut ky);
+        }
+        let shear_z = 1.0 / direction[kz];
+        let (shear_x, shear_y) = (direction[kx] * shear_z, direction[ky] * shear_z);
+        let unit = |k: usize| Vec3A::from(Vec3::AXES[k]);
+        ShearedRay {
+            origin: origin.into(),
+            rows: [unit(kx) - shear_x * unit(kz), unit(ky) - shear_y * unit(kz), unit(kz)],
+            shear_z,
+        }
+    }
+
+    #[test]
+    fn the_branch_free_shear_is_the_papers() {
+        let bits = |r: &ShearedRay| {
+            let lanes = |v: Vec3A| v.to_array().map(f32::to_bits);
+            (lanes(r.origin), r.rows.map(lanes), r.shear_z.to_bits())
+        };
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = move || {
+            state = state.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
+            (state >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0
+        };
+        let mut directions: Vec<Vec3> = (0..10_000).map(|_| Vec3::new(next(), next(), next())).collect();
+        // Ties between axes, zeros of either sign, and each axis alone, both ways.
+        for d in [Vec3::ONE, Vec3::new(-1.0, 1.0, 0.5), Vec3::new(0.5, -1.0, -1.0), Vec3::new(-0.0, 0.0, -1.0)] {
+            directions.push(d);
+        }
+        for axis in Vec3::AXES {
+            directions.extend([axis, -axis]);
+        }
+        for d in directions.into_iter().filter(|d| *d != Vec3::ZERO) {
+            let origin = Vec3::new(0.25, -3.0, 7.5);
+            assert_eq!(bits(&ShearedRay::new(origin, d)), bits(&paper_shear(origin, d)), "direction {d}");
+        }
+    }
+
+    #[test]
+    fn occlusion_agrees_with_the_closest_hit_test_inside_the_segment() {
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = move || {
+            state = state.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
+            (state >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0
+        };
+        let mut blocked = 0;
+        for i in 0..100_000 {
+            let mut point = || Vec3::new(next(), next(), next());
+            let triangle = PackedTriangle::new([point(), point(), point()]);
+            let origin = point() * 3.0;
+            let Some(direction) = (point() * 0.5 - origin).try_normalize() else { continue };
+            let ray = ShearedRay::new(origin, direction);
+            let (t_min, t_max) = (0.5 * (next() + 1.0), 1.0 + 4.0 * (next() + 1.0));
+            let hit = ray.intersect_packed(&triangle, t_min, t_max);
+            let occludes = ray.occludes_packed(&triangle, t_min, t_max);
+            // The two may differ only for a hit within rounding of an end of the segment.
+            let near_an_end = |t: f32| (t - t_min).abs() <= 1e-5 * t || (t - t_max).abs() <= 1e-5 * t;
+            match hit {
+                Some(hit) if !near_an_end(hit.t) => assert_eq!(occludes, hit.t < t_max, "case {i}"),
+                None => {
+                    let unbounded = ray.intersect_packed(&triangle, f32::NEG_INFINITY, f32::INFINITY);
+                    if !unbounded.is_some_and(|h| near_an_end(h.t)) {
+                        assert!(!occludes, "case {i}");
+                    }
+                }
+                Some(_) => {}
+            }
+            blocked += occludes as u32;
+        }
+        assert!(blocked > 5_000, "{blocked} blocked");
+        // The far end is open: a segment ending exactly on the triangle is not blocked.
+        let floor =
+            PackedTriangle::new([Vec3::new(-1.0, 0.0, -1.0), Vec3::new(0.0, 0.0, 1.0), Vec3::new(1.0, 0.0, -1.0)]);
+        let down = ShearedRay::new(Vec3::Y, Vec3::NEG_Y);
+        assert!(down.occludes_packed(&floor, 0.0, 1.5));
+        assert!(!down.occludes_packed(&floor, 0.0, 1.0));
+        assert!(!down.occludes_packed(&floor, 1.0, 2.0));
+        assert!(down.occludes_packed(&floor, 0.0, f32::INFINITY));
     }
 
     #[test]
