@@ -24,7 +24,7 @@ fn brute_force(triangles: &[Triangle], ray: &Ray) -> Option<(u32, f32)> {
     let sheared = ShearedRay::new(ray.origin, ray.direction);
     let mut best: Option<(u32, f32)> = None;
     for (i, triangle) in triangles.iter().enumerate() {
-        if let Some(hit) = sheared.intersect(triangle.vertices, ray.t_min, ray.t_max) {
+        if let Some(hit) = sheared.intersect(triangle.vertices, ray.t_min, ray.t_max).filter(|h| h.t < ray.t_max) {
             if best.is_none_or(|(_, t)| hit.t < t) {
                 best = Some((i as u32, hit.t));
             }
@@ -32,7 +32,7 @@ fn brute_force(triangles: &[Triangle], ray: &Ray) -> Option<(u32, f32)> {
     }
     best.map(|(i, t)| {
         let plane = PackedTriangle::new(triangles[i as usize].vertices).plane_distance(ray);
-        (i, plane.filter(|&p| p > ray.t_min && p <= ray.t_max).unwrap_or(t))
+        (i, plane.filter(|&p| p > ray.t_min && p < ray.t_max).unwrap_or(t))
     })
 }
 
@@ -227,6 +227,22 @@ fn degenerate_inputs_never_panic() {
         }
         let empty = ObvhsIntersector::build(&[], kind);
         assert!(empty.intersect(&Ray::new(Vec3::ZERO, Vec3::Z)).is_none());
+    }
+}
+
+#[test]
+fn both_ends_of_the_segment_are_open() {
+    let floor = [Triangle::new(Vec3::new(-1.0, 0.0, -1.0), Vec3::new(0.0, 0.0, 1.0), Vec3::new(1.0, 0.0, -1.0))];
+    let down = |t_min: f32, t_max: f32| Ray::segment(Vec3::Y, Vec3::NEG_Y, t_min, t_max);
+    let just_past_one = f32::from_bits(1.0f32.to_bits() + 1);
+    for kind in KINDS {
+        let bvh = ObvhsIntersector::build(&floor, kind);
+        assert_eq!(bvh.intersect(&down(0.0, just_past_one)).map(|h| h.t), Some(1.0), "{kind:?}");
+        assert_eq!(bvh.intersect(&down(0.0, 1.0)), None, "{kind:?}: a hit at t_max");
+        assert_eq!(bvh.intersect(&down(1.0, 2.0)), None, "{kind:?}: a hit at t_min");
+        assert!(bvh.occluded(&down(0.0, just_past_one)), "{kind:?}");
+        assert!(!bvh.occluded(&down(0.0, 1.0)), "{kind:?}: a blocker at t_max");
+        assert!(!bvh.occluded(&down(1.0, 2.0)), "{kind:?}: a blocker at t_min");
     }
 }
 

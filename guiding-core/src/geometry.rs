@@ -1,6 +1,6 @@
 //! Rays, hits and triangles: the geometric vocabulary shared by intersectors and guides.
 
-use glam::{Vec2, Vec3};
+use glam::{Vec2, Vec3, Vec3A};
 
 /// A ray `origin + t·direction` restricted to `t_min < t < t_max`.
 ///
@@ -27,6 +27,27 @@ impl Ray {
     /// A ray limited to `t_min < t < t_max`, e.g. a shadow ray towards a light at distance `t_max`.
     pub fn segment(origin: Vec3, direction: Vec3, t_min: f32, t_max: f32) -> Self {
         Self { origin, direction, t_min, t_max }
+    }
+
+    /// Whether the ray can be traced: finite origin and direction, a non-zero direction
+    /// and a non-empty segment (`t_min < t_max`, neither NaN). Intersectors answer "no
+    /// hit" for any other ray.
+    ///
+    /// ```
+    /// use glam::Vec3;
+    /// use guiding_core::Ray;
+    /// assert!(Ray::new(Vec3::ZERO, Vec3::Z).is_traceable());
+    /// assert!(!Ray::new(Vec3::NAN, Vec3::Z).is_traceable());
+    /// assert!(!Ray::new(Vec3::ZERO, Vec3::ZERO).is_traceable());
+    /// assert!(!Ray::segment(Vec3::ZERO, Vec3::Z, 1.0, 1.0).is_traceable());
+    /// ```
+    #[inline]
+    pub fn is_traceable(&self) -> bool {
+        // x·0 is ±0 for finite x and NaN otherwise: one SIMD test for all six coordinates
+        // (this runs once per ray in every intersector).
+        let (origin, direction) = (Vec3A::from(self.origin), Vec3A::from(self.direction));
+        let finite = (origin * 0.0 + direction * 0.0).cmpeq(Vec3A::ZERO).all();
+        finite && direction.cmpne(Vec3A::ZERO).any() && self.t_min < self.t_max
     }
 
     /// The point at parameter `t`.

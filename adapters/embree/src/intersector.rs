@@ -4,7 +4,7 @@ use std::ffi::{c_char, c_void, CStr};
 use std::fmt;
 use std::sync::Mutex;
 
-use glam::{Vec2, Vec3};
+use glam::Vec2;
 use guiding_core::{Hit, Intersector, Ray, Triangle};
 
 use crate::sys;
@@ -172,11 +172,6 @@ impl EmbreeIntersector {
         self.scene
     }
 
-    #[inline]
-    fn is_valid(ray: &Ray) -> bool {
-        ray.origin.is_finite() && ray.direction.is_finite() && ray.direction != Vec3::ZERO && ray.t_min < ray.t_max
-    }
-
     /// Embree accepts `tnear ≤ t ≤ tfar`; the trait asks for `t_min < t < t_max`.
     #[inline]
     fn embree_ray(ray: &Ray) -> sys::RTCRay {
@@ -202,7 +197,7 @@ impl EmbreeIntersector {
 impl Intersector for EmbreeIntersector {
     #[inline]
     fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        if !Self::is_valid(ray) || self.original_index.is_empty() {
+        if !ray.is_traceable() || self.original_index.is_empty() {
             return None;
         }
         let mut ray_hit = sys::RTCRayHit {
@@ -228,7 +223,7 @@ impl Intersector for EmbreeIntersector {
 
     #[inline]
     fn occluded(&self, ray: &Ray) -> bool {
-        if !Self::is_valid(ray) || self.original_index.is_empty() {
+        if !ray.is_traceable() || self.original_index.is_empty() {
             return false;
         }
         let mut embree_ray = Self::embree_ray(ray);
@@ -254,6 +249,7 @@ impl Drop for EmbreeIntersector {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use glam::Vec3;
 
     fn quad() -> [Triangle; 2] {
         let p = |x: f32, z: f32| Vec3::new(x, 0.0, z);

@@ -155,14 +155,6 @@ impl ObvhsIntersector {
             t_max: ray.t_max * self.scale,
         }
     }
-
-    #[inline]
-    fn is_valid(ray: &Ray) -> bool {
-        // x·0 is ±0 for finite x and NaN otherwise: one SIMD test for all six coordinates.
-        let (origin, direction) = (Vec3A::from(ray.origin), Vec3A::from(ray.direction));
-        let finite = (origin * 0.0 + direction * 0.0).cmpeq(Vec3A::ZERO).all();
-        finite && direction.cmpne(Vec3A::ZERO).any() && ray.t_min < ray.t_max
-    }
 }
 
 /// A ray in the intersector's local frame, held in SIMD registers: a [`Ray`] written
@@ -185,6 +177,19 @@ impl LocalRay {
     #[inline]
     fn bvh_ray(&self) -> obvhs::ray::Ray {
         obvhs::ray::Ray::new(self.origin, self.direction + Vec3A::ZERO, self.t_min, self.t_max)
+    }
+}
+
+/// The largest float below a finite `t` (∞ stays ∞, NaN stays NaN).
+fn float_below(t: f32) -> f32 {
+    if !t.is_finite() {
+        t
+    } else if t > 0.0 {
+        f32::from_bits(t.to_bits() - 1)
+    } else if t == 0.0 {
+        -f32::from_bits(1)
+    } else {
+        f32::from_bits(t.to_bits() + 1)
     }
 }
 
@@ -211,10 +216,13 @@ fn power_of_two(k: i32) -> f32 {
 impl Intersector for ObvhsIntersector {
     #[inline]
     fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        if !Self::is_valid(ray) {
+        if !ray.is_traceable() {
             return None;
         }
-        let ray = self.to_local(ray);
+        // The trait's segment is open at t_max; the watertight test's is closed (so that
+        // the traversal's shrinking t_max still admits ties), so end one float earlier.
+        let local = self.to_local(ray);
+        let ray = LocalRay { t_max: float_below(local.t_max), ..local };
         let sheared = ShearedRay::new(ray.origin, ray.direction);
         // The traversal keeps the closest t as its t_max; ties (a ray through a shared
         // edge) go to the lower original index, so the answer does not depend on
@@ -251,7 +259,7 @@ impl Intersector for ObvhsIntersector {
 
     #[inline]
     fn occluded(&self, ray: &Ray) -> bool {
-        if !Self::is_valid(ray) {
+        if !ray.is_traceable() {
             return false;
         }
         let ray = self.to_local(ray);
