@@ -84,6 +84,8 @@ pub struct ObvhsIntersector {
     hierarchy: Hierarchy,
     /// `local = world · scale`, a power of two.
     scale: f32,
+    /// `1 / scale`, exact: dividing by `scale` is multiplying by it.
+    inverse_scale: f32,
     /// Triangles in BVH order (the order `primitive_indices` gives), for locality.
     triangles: Vec<PackedTriangle>,
     /// Index in the caller's slice of each triangle in BVH order.
@@ -97,7 +99,13 @@ impl ObvhsIntersector {
     pub fn build(triangles: &[Triangle], kind: BvhKind) -> Self {
         let kept: Vec<u32> = (0..triangles.len() as u32).filter(|&i| triangles[i as usize].is_finite()).collect();
         if kept.is_empty() {
-            return Self { hierarchy: Hierarchy::Empty, scale: 1.0, triangles: Vec::new(), original_index: Vec::new() };
+            return Self {
+                hierarchy: Hierarchy::Empty,
+                scale: 1.0,
+                inverse_scale: 1.0,
+                triangles: Vec::new(),
+                original_index: Vec::new(),
+            };
         }
         let (low, high) = kept
             .iter()
@@ -137,7 +145,7 @@ impl ObvhsIntersector {
         };
         let original_index: Vec<u32> = primitive_indices.iter().map(|&p| kept[p as usize]).collect();
         let triangles = primitive_indices.iter().map(|&p| PackedTriangle::new(local[p as usize])).collect();
-        Self { hierarchy, scale, triangles, original_index }
+        Self { hierarchy, scale, inverse_scale: 1.0 / scale, triangles, original_index }
     }
 
     /// Number of triangles in the hierarchy.
@@ -252,9 +260,13 @@ impl Intersector for ObvhsIntersector {
             }
         }
         let triangle = self.triangles.get(best_slot)?;
-        let local = Ray::segment(ray.origin.into(), ray.direction.into(), ray.t_min, ray.t_max);
-        let t = triangle.plane_distance(&local).filter(|&t| t > ray.t_min && t <= ray.t_max).unwrap_or(best_t);
-        Some(Hit { t: t / self.scale, primitive: self.original_index[best_slot], barycentrics: best_barycentrics })
+        let t =
+            triangle.plane_t(ray.origin, ray.direction).filter(|&t| t > ray.t_min && t <= ray.t_max).unwrap_or(best_t);
+        Some(Hit {
+            t: t * self.inverse_scale,
+            primitive: self.original_index[best_slot],
+            barycentrics: best_barycentrics,
+        })
     }
 
     #[inline]

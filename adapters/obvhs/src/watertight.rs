@@ -149,24 +149,34 @@ impl PackedTriangle {
         [self.x[i] as f64, self.y[i] as f64, self.z[i] as f64]
     }
 
+    /// (v1 − v0) × (v2 − v0) in f64: f32 differences are exact there, and each product
+    /// of two of them too, so only the final sums round.
+    fn exact_normal([a, b, c]: [[f64; 3]; 3]) -> [f64; 3] {
+        let (e1, e2) = ([b[0] - a[0], b[1] - a[1], b[2] - a[2]], [c[0] - a[0], c[1] - a[1], c[2] - a[2]]);
+        [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]]
+    }
+
     /// The ray parameter where `ray` meets the triangle's plane, in f64: accurate to
     /// f32 rounding however thin the triangle. The watertight test decides *whether* a
     /// ray hits, but its t comes from edge functions that lose digits on slivers (a
     /// 3.45 × 0.008 triangle in the Grey & White Room gave t 1e-4 off); this refines the
     /// one hit a closest-hit query returns. `None` for a ray in the plane.
     pub fn plane_distance(&self, ray: &Ray) -> Option<f32> {
+        self.plane_t(ray.origin.into(), ray.direction.into())
+    }
+
+    /// [`plane_distance`](Self::plane_distance) for `origin + t·direction`.
+    #[inline]
+    pub fn plane_t(&self, origin: Vec3A, direction: Vec3A) -> Option<f32> {
         let [a, b, c] = [self.vertex(0), self.vertex(1), self.vertex(2)];
-        // f32 differences are exact in f64.
-        let sub = |p: [f64; 3], q: [f64; 3]| [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
-        let cross = |p: [f64; 3], q: [f64; 3]| {
-            [p[1] * q[2] - p[2] * q[1], p[2] * q[0] - p[0] * q[2], p[0] * q[1] - p[1] * q[0]]
-        };
         let dot = |p: [f64; 3], q: [f64; 3]| p[0] * q[0] + p[1] * q[1] + p[2] * q[2];
-        let normal = cross(sub(b, a), sub(c, a));
-        let origin = ray.origin.to_array().map(f64::from);
-        let direction = ray.direction.to_array().map(f64::from);
+        // The normal must be exact, not rounded to f32: its error times |v0 − o| (which
+        // may be far larger than t) would swamp a small t.
+        let normal = Self::exact_normal([a, b, c]);
+        let origin = origin.to_array().map(f64::from);
+        let direction = direction.to_array().map(f64::from);
         let denominator = dot(direction, normal);
-        let t = dot(sub(a, origin), normal) / denominator;
+        let t = dot([a[0] - origin[0], a[1] - origin[1], a[2] - origin[2]], normal) / denominator;
         (denominator != 0.0 && t.is_finite()).then_some(t as f32)
     }
 }
@@ -354,6 +364,8 @@ mod tests {
         // Parallel to the plane: no distance.
         let along = Ray::new(Vec3::ZERO, Vec3::new(0.0, 0.0, 1.0));
         assert_eq!(PackedTriangle::new([Vec3::ZERO, Vec3::X, Vec3::Z]).plane_distance(&along), None);
+        // A degenerate triangle has no plane.
+        assert_eq!(PackedTriangle::new([Vec3::ONE; 3]).plane_distance(&along), None);
     }
 
     #[test]
