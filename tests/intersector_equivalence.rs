@@ -31,7 +31,8 @@ fn brute_force(triangles: &[Triangle], ray: &Ray) -> Option<(u32, f32)> {
         }
     }
     best.map(|(i, t)| {
-        let plane = PackedTriangle::new(triangles[i as usize].vertices).plane_distance(ray);
+        let plane =
+            PackedTriangle::new(triangles[i as usize].vertices).plane_t(ray.origin.into(), ray.direction.into());
         (i, plane.filter(|&p| p > ray.t_min && p < ray.t_max).unwrap_or(t))
     })
 }

@@ -1,8 +1,8 @@
 //! Embree 4 against obvhs (with the `embree` feature): on 10⁵ random rays over every
-//! shipped scene (each folder of `scenes/`) both report the same primitive and t within 1e-5 relative (plus 1e-6 of
-//! the coordinates' magnitude over the cosine: their rounding, at grazing hits), ties at
-//! shared edges or coincident surfaces (Embree's triangle is hit at the same t as well)
-//! excepted and counted; the same occlusion
+//! shipped scene (each folder of `scenes/`) both report the same primitive and t within
+//! 1e-5 relative (plus 1e-6 of the coordinates' magnitude over the cosine: their
+//! rounding, at grazing hits), ties at shared edges or coincident surfaces (Embree's
+//! triangle is hit at the same t as well) excepted and counted; the same occlusion
 //! answers; and renders of cornell with each intersector agree within noise.
 #![cfg(feature = "embree")]
 

@@ -7,7 +7,6 @@
 //! round to exactly zero are recomputed in f64.
 
 use glam::{Vec2, Vec3, Vec3A, Vec3Swizzles};
-use guiding_core::Ray;
 
 /// A ray prepared for watertight triangle tests: its shear and permuted axes, folded into
 /// three row vectors so a vertex is projected by dot products instead of indexing by
@@ -156,16 +155,11 @@ impl PackedTriangle {
         [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]]
     }
 
-    /// The ray parameter where `ray` meets the triangle's plane, in f64: accurate to
-    /// f32 rounding however thin the triangle. The watertight test decides *whether* a
-    /// ray hits, but its t comes from edge functions that lose digits on slivers (a
-    /// 3.45 × 0.008 triangle in the Grey & White Room gave t 1e-4 off); this refines the
-    /// one hit a closest-hit query returns. `None` for a ray in the plane.
-    pub fn plane_distance(&self, ray: &Ray) -> Option<f32> {
-        self.plane_t(ray.origin.into(), ray.direction.into())
-    }
-
-    /// [`plane_distance`](Self::plane_distance) for `origin + t·direction`.
+    /// The ray parameter where `origin + t·direction` meets the triangle's plane, in
+    /// f64: accurate to f32 rounding however thin the triangle. The watertight test
+    /// decides *whether* a ray hits, but its t comes from edge functions that lose digits
+    /// on slivers (a 3.45 × 0.008 triangle in the Grey & White Room gave t 1e-4 off); this
+    /// refines the one hit a closest-hit query returns. `None` for a ray in the plane.
     #[inline]
     pub fn plane_t(&self, origin: Vec3A, direction: Vec3A) -> Option<f32> {
         let [a, b, c] = [self.vertex(0), self.vertex(1), self.vertex(2)];
@@ -201,6 +195,15 @@ mod tests {
         assert!(miss.intersect(tri, 0.0, f32::INFINITY).is_none());
     }
 
+    /// Uniform numbers in [−1, 1) from a small LCG seeded with `state`: this crate's tests
+    /// need no random-number dependency.
+    fn uniform_stream(mut state: u64) -> impl FnMut() -> f32 {
+        move || {
+            state = state.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
+            (state >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0
+        }
+    }
+
     /// The paper's scalar formulation: each vertex projected by row dot products.
     fn scalar_intersect(ray: &ShearedRay, [v0, v1, v2]: [Vec3; 3], t_min: f32, t_max: f32) -> Option<TriangleHit> {
         let [row_x, row_y, row_z] = ray.rows;
@@ -227,12 +230,7 @@ mod tests {
 
     #[test]
     fn the_packed_test_answers_bit_for_bit_as_the_scalar_one() {
-        // A small LCG: this crate's tests need no random-number dependency.
-        let mut state = 0x2545_f491_4f6c_dd1du64;
-        let mut next = move || {
-            state = state.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
-            (state >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0
-        };
+        let mut next = uniform_stream(0x2545_f491_4f6c_dd1d);
         let mut hits = 0;
         for i in 0..100_000 {
             let mut point = || Vec3::new(next(), next(), next());
@@ -281,11 +279,7 @@ mod tests {
             let lanes = |v: Vec3A| v.to_array().map(f32::to_bits);
             (lanes(r.origin), r.rows.map(lanes), r.shear_z.to_bits())
         };
-        let mut state = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = move || {
-            state = state.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
-            (state >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0
-        };
+        let mut next = uniform_stream(0x9e37_79b9_7f4a_7c15);
         let mut directions: Vec<Vec3> = (0..10_000).map(|_| Vec3::new(next(), next(), next())).collect();
         // Ties between axes, zeros of either sign, and each axis alone, both ways.
         for d in [Vec3::ONE, Vec3::new(-1.0, 1.0, 0.5), Vec3::new(0.5, -1.0, -1.0), Vec3::new(-0.0, 0.0, -1.0)] {
@@ -302,11 +296,7 @@ mod tests {
 
     #[test]
     fn occlusion_agrees_with_the_closest_hit_test_inside_the_segment() {
-        let mut state = 0x2545_f491_4f6c_dd1du64;
-        let mut next = move || {
-            state = state.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
-            (state >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0
-        };
+        let mut next = uniform_stream(0x2545_f491_4f6c_dd1d);
         let mut blocked = 0;
         for i in 0..100_000 {
             let mut point = || Vec3::new(next(), next(), next());
@@ -351,21 +341,18 @@ mod tests {
             Vec3::new(0.089458, 2.824222, -3.543342),
             Vec3::new(0.093327, 2.831541, -3.539473),
         ];
-        let ray = Ray::new(
-            Vec3::new(0.135_394_63, 2.759_409_7, -1.925_373_1),
-            Vec3::new(-0.411_418_86, 0.604_699_13, 0.681_963),
-        );
+        let origin = Vec3::new(0.135_394_63, 2.759_409_7, -1.925_373_1);
+        let direction = Vec3::new(-0.411_418_86, 0.604_699_13, 0.681_963);
         let exact = 0.109_698_336_f64;
-        let watertight = ShearedRay::new(ray.origin, ray.direction).intersect(sliver, 0.0, f32::INFINITY).unwrap();
-        let plane = PackedTriangle::new(sliver).plane_distance(&ray).unwrap();
+        let watertight = ShearedRay::new(origin, direction).intersect(sliver, 0.0, f32::INFINITY).unwrap();
+        let plane = PackedTriangle::new(sliver).plane_t(origin.into(), direction.into()).unwrap();
         assert!(((plane as f64 - exact) / exact).abs() < 1e-6, "{plane}");
         // What the refinement is for: the edge functions' t is far off here.
         assert!(((watertight.t as f64 - exact) / exact).abs() > 1e-5, "{}", watertight.t);
         // Parallel to the plane: no distance.
-        let along = Ray::new(Vec3::ZERO, Vec3::new(0.0, 0.0, 1.0));
-        assert_eq!(PackedTriangle::new([Vec3::ZERO, Vec3::X, Vec3::Z]).plane_distance(&along), None);
+        assert_eq!(PackedTriangle::new([Vec3::ZERO, Vec3::X, Vec3::Z]).plane_t(Vec3A::ZERO, Vec3A::Z), None);
         // A degenerate triangle has no plane.
-        assert_eq!(PackedTriangle::new([Vec3::ONE; 3]).plane_distance(&along), None);
+        assert_eq!(PackedTriangle::new([Vec3::ONE; 3]).plane_t(Vec3A::ZERO, Vec3A::Z), None);
     }
 
     #[test]

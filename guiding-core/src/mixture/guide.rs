@@ -266,6 +266,24 @@ fn add_to(word: &AtomicU32, value: f32) {
     }
 }
 
+impl Clone for GaussianMixture {
+    /// A copy of the mixtures, the pending batch and the counters (the atomics read once).
+    fn clone(&self) -> Self {
+        let copy = |count: &AtomicUsize| AtomicUsize::new(count.load(Ordering::Relaxed));
+        Self {
+            settings: self.settings,
+            low: self.low,
+            high: self.high,
+            grid: self.grid,
+            mixtures: self.mixtures.clone(),
+            batch: self.batch.iter().map(|word| AtomicU32::new(word.load(Ordering::Relaxed))).collect(),
+            epoch: self.epoch,
+            rejected_non_finite: copy(&self.rejected_non_finite),
+            rejected_negative: copy(&self.rejected_negative),
+        }
+    }
+}
+
 impl Guide for GaussianMixture {
     type Region = MixtureRegion;
     type Distribution<'a> = MixtureDistribution<'a>;

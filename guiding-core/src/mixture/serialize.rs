@@ -191,6 +191,8 @@ mod tests {
         let bytes = guide.to_bytes();
         let mut loaded = GaussianMixture::from_bytes(&bytes).unwrap();
         assert_eq!(loaded.to_bytes(), bytes);
+        // A clone holds the same state, pending batch included.
+        assert_eq!(guide.clone().to_bytes(), bytes);
         assert_eq!(loaded.stats(), guide.stats());
         guide.rebuild_sampling();
         loaded.rebuild_sampling();

@@ -206,13 +206,12 @@ impl GuideBuffers {
         queue.write_buffer(&self.integral_terms, 0, bytemuck::cast_slice(&a.integral_terms));
         queue.write_buffer(&self.built_visits, 0, bytemuck::cast_slice(&a.region_visits));
     }
-}
 
-impl GuideBuffers {
     /// Rewrites a mixture's lobe table and batch words (after the host's M-step).
     pub fn write_mixture(&self, queue: &wgpu::Queue, mixture: &GaussianMixture) {
-        queue.write_buffer(&self.cdf, 0, bytemuck::cast_slice(&padded(&mixture.lobe_table(), 1)));
-        queue.write_buffer(&self.q, 0, bytemuck::cast_slice(&padded(&bits(mixture.batch_words()), 1)));
+        let a = Arrays::of_mixture(mixture);
+        queue.write_buffer(&self.cdf, 0, bytemuck::cast_slice(&a.cdf));
+        queue.write_buffer(&self.q, 0, bytemuck::cast_slice(&a.q));
     }
 }
 

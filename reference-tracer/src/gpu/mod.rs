@@ -365,9 +365,7 @@ impl GpuTracer {
             _ => None,
         };
         let mixture = match guide {
-            Some(GpuGuide::Mixture(mixture)) => {
-                Some(GaussianMixture::from_bytes(&mixture.to_bytes()).map_err(|e| format!("mixture: {e}"))?)
-            }
+            Some(GpuGuide::Mixture(mixture)) => Some(mixture.clone()),
             _ => None,
         };
         let host_readback = device.create_buffer(&wgpu::BufferDescriptor {
@@ -522,7 +520,7 @@ impl GpuTracer {
         let Some(learned) = self.mixture.as_ref() else {
             return Err("no mixture was uploaded".into());
         };
-        *mixture = GaussianMixture::from_bytes(&learned.to_bytes()).map_err(|e| format!("mixture: {e}"))?;
+        mixture.clone_from(learned);
         Ok(())
     }
 

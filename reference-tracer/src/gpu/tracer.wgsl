@@ -333,6 +333,12 @@ fn to_world(f: Frame, v: vec3<f32>) -> vec3<f32> {
     return f.tangent * v.x + f.bitangent * v.y + f.normal * v.z;
 }
 
+// The unit vector with z = `z` and azimuth `phi` about the z axis.
+fn spherical_direction(z: f32, phi: f32) -> vec3<f32> {
+    let r = sqrt(max(1.0 - z * z, 0.0));
+    return vec3<f32>(r * cos(phi), r * sin(phi), z);
+}
+
 fn cosine_hemisphere(u: vec2<f32>) -> vec3<f32> {
     let r = sqrt(u.x);
     let phi = 2.0 * PI * u.y;
@@ -683,9 +689,7 @@ fn direction_in_patch(entry: u32, xi: vec2<f32>) -> vec3<f32> {
     let rows = params.guide_shape.x;
     let columns = params.guide_shape.y;
     let uv = vec2<f32>((f32(entry / columns) + xi.x) / f32(rows), (f32(entry % columns) + xi.y) / f32(columns));
-    let z = clamp(uv.x, 0.0, 1.0);
-    let r = sqrt(max(1.0 - z * z, 0.0));
-    let d = vec3<f32>(r * cos(2.0 * PI * uv.y), r * sin(2.0 * PI * uv.y), z);
+    let d = spherical_direction(clamp(uv.x, 0.0, 1.0), 2.0 * PI * uv.y);
     if (d.z >= MIN_SAMPLED_COS) { return d; }
     let planar = sqrt(d.x * d.x + d.y * d.y);
     let scale = sqrt(1.0 - MIN_SAMPLED_COS * MIN_SAMPLED_COS) / planar;
@@ -749,15 +753,30 @@ fn grid_sample(probe: u32, u: vec2<f32>) -> GuideSample {
 const LEAF_BIT: u32 = 0x80000000u;
 const MAX_TREE_DEPTH: u32 = 32u;
 
+// CellGrid (the volume's and the mixture's): `p` in cell units from the low corner, the
+// cell holding it (the nearest one outside) and that cell's index.
+struct GridCell {
+    scaled: vec3<f32>,
+    cell: vec3<i32>,
+    index: u32,
+}
+
+fn grid_cell(p: vec3<f32>) -> GridCell {
+    let resolution = vec3<i32>(params.volume_grid.xyz);
+    var g: GridCell;
+    g.scaled = max((p - params.volume_low.xyz) * params.volume_scale.xyz, vec3<f32>(0.0));
+    g.cell = min(vec3<i32>(g.scaled), resolution - vec3<i32>(1));
+    g.index = u32((g.cell.z * resolution.y + g.cell.y) * resolution.x + g.cell.x);
+    return g;
+}
+
 // IrradianceVolume::leaf_at: the grid cell holding `p` (the nearest one outside), then
 // down by octants; NO_PROBE for a non-finite point.
 fn volume_leaf(p: vec3<f32>) -> u32 {
     if (!all(abs(p) < vec3<f32>(INFINITY))) { return NO_PROBE; }
-    let resolution = vec3<i32>(params.volume_grid.xyz);
-    let scaled = max((p - params.volume_low.xyz) * params.volume_scale.xyz, vec3<f32>(0.0));
-    let c = min(vec3<i32>(scaled), resolution - vec3<i32>(1));
-    var offset = clamp(scaled - vec3<f32>(c), vec3<f32>(0.0), vec3<f32>(1.0));
-    var entry = index_table[u32((c.z * resolution.y + c.y) * resolution.x + c.x)];
+    let g = grid_cell(p);
+    var offset = clamp(g.scaled - vec3<f32>(g.cell), vec3<f32>(0.0), vec3<f32>(1.0));
+    var entry = index_table[g.index];
     for (var depth = 0u; depth < MAX_TREE_DEPTH && (entry & LEAF_BIT) == 0u; depth += 1u) {
         let upper = offset >= vec3<f32>(0.5);
         let octant = select(0u, 1u, upper.x) | select(0u, 2u, upper.y) | select(0u, 4u, upper.z);
@@ -785,9 +804,7 @@ fn sphere_direction_in_patch(entry: u32, u: vec2<f32>) -> vec3<f32> {
     let bands = params.guide_shape.x;
     let sectors = params.guide_shape.y;
     let z = clamp(-1.0 + 2.0 * (f32(entry / sectors) + u.x) / f32(bands), -1.0, 1.0);
-    let phi = 2.0 * PI * (f32(entry % sectors) + u.y) / f32(sectors);
-    let r = sqrt(max(1.0 - z * z, 0.0));
-    return vec3<f32>(r * cos(phi), r * sin(phi), z);
+    return spherical_direction(z, 2.0 * PI * (f32(entry % sectors) + u.y) / f32(sectors));
 }
 
 fn mirror(d: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
@@ -865,10 +882,7 @@ fn log1p(x: f32) -> f32 {
 // GaussianMixture::locate: the grid cell, then the normal's dominant axis and sign.
 fn mixture_region(p: vec3<f32>, normal: vec3<f32>) -> u32 {
     if (!all(abs(p) < vec3<f32>(INFINITY))) { return NO_PROBE; }
-    let resolution = vec3<i32>(params.volume_grid.xyz);
-    let scaled = max((p - params.volume_low.xyz) * params.volume_scale.xyz, vec3<f32>(0.0));
-    let c = min(vec3<i32>(scaled), resolution - vec3<i32>(1));
-    let cell = u32((c.z * resolution.y + c.y) * resolution.x + c.x);
+    let cell = grid_cell(p).index;
     var side = 0u;
     if (params.guide_shape.z == 6u) {
         let a = abs(normal);
@@ -907,8 +921,7 @@ fn lobe_sample(region: u32, k: u32, u: vec2<f32>) -> vec3<f32> {
     let kappa = lobe_word(region, k, 3u);
     var w = 1.0 - 2.0 * u.x;
     if (kappa != 0.0) { w = clamp(1.0 + log1p((1.0 - u.x) * expm1(-2.0 * kappa)) / kappa, -1.0, 1.0); }
-    let r = sqrt(max(1.0 - w * w, 0.0));
-    let local = vec3<f32>(r * cos(2.0 * PI * u.y), r * sin(2.0 * PI * u.y), w);
+    let local = spherical_direction(w, 2.0 * PI * u.y);
     return normalize(to_world(frame_from_normal(lobe_mean(region, k)), local));
 }
 
@@ -916,9 +929,7 @@ fn mixture_sample(region: u32, u: vec2<f32>) -> GuideSample {
     let mix = params.scene.z;
     var d = vec3<f32>(0.0);
     if (u.x < mix) {
-        let z = 1.0 - 2.0 * (u.x / mix);
-        let r = sqrt(max(1.0 - z * z, 0.0));
-        d = vec3<f32>(r * cos(2.0 * PI * u.y), r * sin(2.0 * PI * u.y), z);
+        d = spherical_direction(1.0 - 2.0 * (u.x / mix), 2.0 * PI * u.y);
     } else {
         let x = min((u.x - mix) / (1.0 - mix), 0.99999994);
         let lobes = params.guide.w;
