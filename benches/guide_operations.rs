@@ -1,5 +1,7 @@
 //! Nanoseconds per guide operation on a 1,000-probe hemisphere grid over a closed box
-//! (the Cornell box's walls): locate, sample, pdf, update, estimate, rebuild.
+//! (the Cornell box's walls): locate, sample, pdf, update, estimate, rebuild; and on a
+//! learned spatial × directional tree over the same box: a render-time vertex (locate,
+//! distribution, sample, pdf) and a record.
 //!
 //! `cargo bench --bench guide_operations`
 
@@ -10,7 +12,10 @@ use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use glam::{Vec2, Vec3};
-use guiding_core::{Guide, HemisphereGrid, HemisphereGridSettings, Lambertian, Pcg32, ProbeSet};
+use guiding_core::{
+    DirectionalDistribution, Guide, HemisphereGrid, HemisphereGridSettings, Lambertian, Pcg32, ProbeSet,
+    SpatialDirectionalTree, SpatialDirectionalTreeSettings,
+};
 
 fn bench(c: &mut Criterion) {
     let walls = support::box_walls();
@@ -99,5 +104,62 @@ fn bench(c: &mut Criterion) {
     );
 }
 
-criterion_group!(benches, bench);
+/// A tree taught, epoch after epoch, a light in one corner of the box seen from every
+/// wall point (radiance falling off sharply around its direction), then timed.
+fn bench_tree(c: &mut Criterion) {
+    let walls = support::box_walls();
+    let queries = ProbeSet::place_on_triangles(&walls, 4093, false).expect("queries");
+    let mut tree = SpatialDirectionalTree::new(Vec3::NEG_ONE, Vec3::ONE, SpatialDirectionalTreeSettings::default())
+        .expect("tree over the box");
+    let light = Vec3::new(0.8, 0.95, 0.8);
+    let mut rng = Pcg32::new(3, 4);
+    for _epoch in 0..8 {
+        for _ in 0..100 {
+            for (&p, &n) in queries.positions.iter().zip(&queries.normals) {
+                let region = tree.locate(p, n).expect("a leaf");
+                let s = tree.sample(region, rng.next_vec2());
+                let to_light = (light - p).normalize_or_zero();
+                let target = 0.1 + 100.0 * s.direction.dot(to_light).max(0.0).powi(200);
+                tree.update_sampled(region, s.direction, target, s.pdf);
+            }
+        }
+        tree.rebuild_sampling();
+    }
+    let uniforms: Vec<Vec2> = (0..queries.positions.len()).map(|_| rng.next_vec2()).collect();
+    let mut i = 0usize;
+    let count = queries.positions.len();
+    c.bench_function("tree_vertex_locate_distribution_sample_pdf", |b| {
+        b.iter(|| {
+            i = (i + 1) % count;
+            let region = tree.locate(black_box(queries.positions[i]), black_box(queries.normals[i])).expect("a leaf");
+            let distribution = tree.distribution(region);
+            let s = distribution.sample(black_box(uniforms[i]));
+            black_box(distribution.pdf(black_box(s.direction)))
+        })
+    });
+    let records: Vec<_> = (0..count)
+        .map(|k| {
+            let region = tree.locate(queries.positions[k], queries.normals[k]).expect("a leaf");
+            let s = tree.sample(region, uniforms[k]);
+            (region, s)
+        })
+        .collect();
+    c.bench_function("tree_record", |b| {
+        b.iter(|| {
+            i = (i + 1) % count;
+            let (region, s) = records[i];
+            black_box(tree.update_sampled(black_box(region), black_box(s.direction), black_box(0.5), s.pdf))
+        })
+    });
+    let stats = tree.stats();
+    println!(
+        "tree: {} leaves, {} directional nodes (deepest {}), {} bytes",
+        tree.leaf_count(),
+        tree.directional_node_count(),
+        (0..tree.leaf_count() as u32).map(|l| tree.directional_depth(l)).max().unwrap_or(0),
+        stats.memory_bytes
+    );
+}
+
+criterion_group!(benches, bench, bench_tree);
 criterion_main!(benches);

@@ -450,3 +450,6 @@ table_rule_properties!(irradiance_volume_rules, guiding_core::IrradianceVolume, 
 // The mixture learns in batches (applied between passes): its rate checks live beside it
 // in guiding-core (mixture::guide tests).
 guide_properties!(gaussian_mixture, guiding_core::GaussianMixture, support::gaussian_mixture);
+// The tree learns from records applied between passes: its rate and density checks live
+// beside it in guiding-core (tree::guide tests).
+guide_properties!(spatial_directional_tree, guiding_core::SpatialDirectionalTree, support::spatial_directional_tree);

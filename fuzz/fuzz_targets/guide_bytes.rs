@@ -1,6 +1,7 @@
 //! Serialized guides, raw or damaged: decoding either fails with an error or yields a
 //! guide that validates, round-trips canonically and samples with finite, positive
-//! pdfs. Mode bits 3–4 pick the structure (hemisphere grid, irradiance volume, mixture);
+//! pdfs. Mode bits 3–4 pick the structure (hemisphere grid, irradiance volume, mixture,
+//! spatial × directional tree);
 //! bit 0 picks raw bytes or a real guide's bytes with edits; bit 1 truncates; bit 2
 //! reseals the checksum so the edits reach the field checks behind it.
 #![no_main]
@@ -8,8 +9,8 @@
 use glam::{Vec2, Vec3};
 use guiding_core::{
     reseal_checksum, GaussianMixture, GaussianMixtureSettings, Guide, HemisphereGrid, HemisphereGridSettings,
-    HemisphereMapping, IrradianceVolume, IrradianceVolumeSettings, MixtureRegion, PatchLayout, ProbeId, Triangle,
-    VolumeRegion,
+    HemisphereMapping, IrradianceVolume, IrradianceVolumeSettings, MixtureRegion, PatchLayout, ProbeId,
+    SpatialDirectionalTree, SpatialDirectionalTreeSettings, TreeRegion, Triangle, VolumeRegion,
 };
 use libfuzzer_sys::fuzz_target;
 
@@ -72,6 +73,24 @@ impl FuzzedGuide for GaussianMixture {
     }
 }
 
+impl FuzzedGuide for SpatialDirectionalTree {
+    fn small(p: &dyn Fn(usize) -> u32) -> Self {
+        let settings = SpatialDirectionalTreeSettings {
+            min_split_records: 1 + p(0) % 4,
+            max_directional_depth: 1 + p(1) % 20,
+            uniform_mix: if p(2) % 2 == 0 { 0.0 } else { 0.05 },
+            fold_to_hemisphere: p(3) % 2 == 0,
+            ..Default::default()
+        };
+        SpatialDirectionalTree::new(Vec3::ZERO, Vec3::ONE, settings).expect("a valid small tree")
+    }
+
+    fn regions(&self) -> Vec<TreeRegion> {
+        let normal = Vec3::new(0.2, 0.9, -0.3).normalize();
+        (0..self.leaf_count() as u32).map(|leaf| TreeRegion { leaf, normal }).collect()
+    }
+}
+
 fn edited_bytes<G: FuzzedGuide>(parameters: &[u8], edits: &[u8], mode: u8) -> Vec<u8> {
     let p = |i: usize| parameters.get(i).copied().unwrap_or(0) as u32;
     let mut guide = G::small(&p);
@@ -124,9 +143,10 @@ fn check<G: FuzzedGuide>(mode: u8, rest: &[u8]) {
 
 fuzz_target!(|data: &[u8]| {
     let Some((&mode, rest)) = data.split_first() else { return };
-    match (mode >> 3) % 3 {
+    match (mode >> 3) % 4 {
         0 => check::<HemisphereGrid>(mode, rest),
         1 => check::<IrradianceVolume>(mode, rest),
-        _ => check::<GaussianMixture>(mode, rest),
+        2 => check::<GaussianMixture>(mode, rest),
+        _ => check::<SpatialDirectionalTree>(mode, rest),
     }
 });

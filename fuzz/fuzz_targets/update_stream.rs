@@ -24,10 +24,11 @@ fuzz_target!(|data: &[u8]| {
         3 => LearningRate::Exponential { alpha: 1.0 },
         _ => LearningRate::Global { exponent: 0.75 },
     };
-    let integral = match (config / 5) % 4 {
+    let integral = match (config / 5) % 5 {
         0 => IntegralEstimator::BsdfWeightedSum,
         1 => IntegralEstimator::StratifiedPatches,
         2 => IntegralEstimator::MaxEntry,
+        3 => IntegralEstimator::PathContinuation,
         _ => IntegralEstimator::BsdfSampled,
     };
     let settings = HemisphereGridSettings {

@@ -103,6 +103,7 @@ impl ByteWriter {
             IntegralEstimator::StratifiedPatches => 1,
             IntegralEstimator::MaxEntry => 2,
             IntegralEstimator::BsdfSampled => 3,
+            IntegralEstimator::PathContinuation => 4,
         });
     }
 
@@ -196,7 +197,8 @@ impl<'a> ByteReader<'a> {
             1 => IntegralEstimator::StratifiedPatches,
             2 => IntegralEstimator::MaxEntry,
             3 => IntegralEstimator::BsdfSampled,
-            _ => return Err(invalid_field("integral", 0, "a kind in 0..=3")),
+            4 => IntegralEstimator::PathContinuation,
+            _ => return Err(invalid_field("integral", 0, "a kind in 0..=4")),
         };
         Ok(UpdateRule { learning_rate, integral })
     }

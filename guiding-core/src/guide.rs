@@ -8,7 +8,7 @@ use glam::{Vec2, Vec3};
 use crate::distribution::{DirectionSample, DirectionalDistribution};
 use crate::error::Error;
 use crate::scattering::ScatteringFunction;
-use crate::update_rule::UpdateOutcome;
+use crate::update_rule::{UpdateOutcome, UpdateRule};
 
 /// A learned importance table Q(x, ω) over the scene's surfaces (or volume) and
 /// directions, sampled in proportion to Q and updated along every path by Eq. (1).
@@ -71,6 +71,13 @@ pub trait Guide: Sync + Sized {
         bsdf: &S,
         u: Vec2,
     ) -> f32;
+
+    /// The rule it learns by: the learning rate, and the integral estimator the renderer
+    /// must follow (under [`IntegralEstimator::PathContinuation`] it carries the path's
+    /// own radiance back instead of calling [`estimate_integral`](Self::estimate_integral)).
+    ///
+    /// [`IntegralEstimator::PathContinuation`]: crate::IntegralEstimator::PathContinuation
+    fn update_rule(&self) -> UpdateRule;
 
     /// Rebuilds every region's sampling distribution from the current Q and starts the
     /// next learning epoch. Call between passes.

@@ -6,11 +6,21 @@ extern crate alloc;
 
 // Shared by every guide structure; a build with none of them compiled in leaves them unused.
 #[cfg_attr(
-    not(any(feature = "hemisphere", feature = "lights", feature = "env", feature = "mixture", feature = "volume")),
+    not(any(
+        feature = "hemisphere",
+        feature = "lights",
+        feature = "env",
+        feature = "mixture",
+        feature = "volume",
+        feature = "tree"
+    )),
     allow(dead_code)
 )]
 mod atomic_f32;
-#[cfg_attr(not(any(feature = "hemisphere", feature = "mixture", feature = "volume")), allow(dead_code))]
+#[cfg_attr(
+    not(any(feature = "hemisphere", feature = "mixture", feature = "volume", feature = "tree")),
+    allow(dead_code)
+)]
 mod bytes;
 pub mod cdf;
 #[cfg(any(feature = "lights", feature = "env", feature = "mixture", feature = "volume"))]
@@ -34,6 +44,8 @@ pub mod hemisphere;
 pub mod lights;
 #[cfg(feature = "mixture")]
 pub mod mixture;
+#[cfg(feature = "tree")]
+pub mod tree;
 #[cfg(feature = "volume")]
 pub mod volume;
 
@@ -58,5 +70,7 @@ pub use hemisphere::{HemisphereGrid, HemisphereGridSettings, HemisphereMapping, 
 pub use lights::{LightCell, LightChoice, LightGuide, LightGuideSettings, LightUpdateRule};
 #[cfg(feature = "mixture")]
 pub use mixture::{GaussianMixture, GaussianMixtureSettings, MixtureRegion};
+#[cfg(feature = "tree")]
+pub use tree::{SpatialDirectionalTree, SpatialDirectionalTreeSettings, TreeDistribution, TreeRegion};
 #[cfg(feature = "volume")]
 pub use volume::{IrradianceVolume, IrradianceVolumeSettings, VolumeRegion};

@@ -89,6 +89,13 @@ pub enum IntegralEstimator {
     ///
     /// [`ScatteringFunction::sample_cos`]: crate::ScatteringFunction::sample_cos
     BsdfSampled,
+    /// No estimate at the next vertex: the path's own continuation stands for the
+    /// integral (the radiance the path actually brought back through the direction,
+    /// scaled by the next vertex's fs·cos/pdf and Russian roulette), which is what
+    /// Practical Path Guiding records. Needs no lookup; a one-sample estimate whose noise
+    /// the averaging removes. Guides asked for an estimate under this rule answer with
+    /// [`BsdfSampled`](Self::BsdfSampled)'s.
+    PathContinuation,
 }
 
 /// The complete update rule: learning rate and integral estimator.

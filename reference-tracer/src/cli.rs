@@ -10,7 +10,7 @@ use guiding_core::volume::SphereLayout;
 use guiding_core::{
     EnvTileGuide, EnvTileGuideSettings, GaussianMixtureSettings, HemisphereGrid, HemisphereGridSettings,
     HemisphereMapping, IntegralEstimator, IrradianceVolumeSettings, LearningRate, LightGuide, LightGuideSettings,
-    LightUpdateRule, PatchLayout, UpdateRule,
+    LightUpdateRule, PatchLayout, SpatialDirectionalTreeSettings, UpdateRule,
 };
 use indicatif::{ProgressBar, ProgressStyle};
 
@@ -21,6 +21,7 @@ use crate::output::{read_image, write_exr, write_pfm, write_png, Image};
 use crate::plan::GuidePlan;
 use crate::render::{render, Budget, Learners, Progress, RenderSettings, RenderStatistics};
 use crate::scene::Scene;
+use crate::schedule::Schedule;
 
 /// Lodestar: path guiding by reinforcement learning.
 #[derive(Debug, Parser)]
@@ -203,9 +204,18 @@ pub struct TraceOptions {
     learning_rate: LearningRate,
     /// Integral of Eq. (1): sampled (the weighted sum for diffuse surfaces, one BSDF
     /// sample for glossy ones: on Veach Ajar 3× the paths/s of weighted, and a 4.7× lower
-    /// relMSE at 30 s), weighted (BSDF-weighted sum over every patch), stratified or max.
-    #[arg(long, default_value = "sampled", value_parser = parse_integral)]
-    integral: IntegralEstimator,
+    /// relMSE at 30 s), weighted (BSDF-weighted sum over every patch), stratified, max, or
+    /// path (the path's own continuation, no lookup). Default: path for the tree,
+    /// sampled for the others.
+    #[arg(long, value_parser = parse_integral)]
+    integral: Option<IntegralEstimator>,
+    /// When guided methods learn: online (every pass, every pass kept) or iterative
+    /// (training iterations of 1, 2, 4, … passes, discarded, then a frozen final image).
+    #[arg(long, default_value = "online", value_parser = Schedule::from_name)]
+    schedule: Schedule,
+    /// The tree guide's memory budget, MiB.
+    #[arg(long, default_value_t = 16.0)]
+    tree_mib: f64,
     /// Patches per hemisphere as U×V, e.g. 8x16 (for --guide volume: bands of cos θ ×
     /// sectors of φ over the whole sphere).
     #[arg(long, default_value = "8x16", value_parser = parse_patches)]
@@ -390,7 +400,8 @@ fn parse_integral(s: &str) -> Result<IntegralEstimator, String> {
         "stratified" => Ok(IntegralEstimator::StratifiedPatches),
         "max" => Ok(IntegralEstimator::MaxEntry),
         "sampled" => Ok(IntegralEstimator::BsdfSampled),
-        _ => Err(format!("unknown integral estimator `{s}` (weighted, stratified, max, sampled)")),
+        "path" => Ok(IntegralEstimator::PathContinuation),
+        _ => Err(format!("unknown integral estimator `{s}` (weighted, stratified, max, sampled, path)")),
     }
 }
 
@@ -441,6 +452,23 @@ impl TraceOptions {
                 settings.validate().map_err(|e| format!("mixture guide: {e}"))?;
                 settings.into()
             }
+            GuideStructure::Tree => {
+                if !(self.tree_mib.is_finite() && self.tree_mib > 0.0) {
+                    return Err(format!("--tree-mib {} must be positive", self.tree_mib));
+                }
+                let defaults = SpatialDirectionalTreeSettings::default();
+                let settings = SpatialDirectionalTreeSettings {
+                    budget_bytes: (self.tree_mib * (1 << 20) as f64) as usize,
+                    update_rule: UpdateRule {
+                        learning_rate: self.learning_rate,
+                        integral: self.integral.unwrap_or(defaults.update_rule.integral),
+                    },
+                    uniform_mix: self.uniform_mix.unwrap_or(defaults.uniform_mix),
+                    ..defaults
+                };
+                settings.validate().map_err(|e| format!("tree guide: {e}"))?;
+                settings.into()
+            }
         })
     }
 
@@ -463,7 +491,10 @@ impl TraceOptions {
         let settings = HemisphereGridSettings {
             budget_bytes: (self.guide_mib * (1 << 20) as f64) as usize,
             layout: PatchLayout { mapping: self.mapping, resolution: self.patches },
-            update_rule: UpdateRule { learning_rate: self.learning_rate, integral: self.integral },
+            update_rule: UpdateRule {
+                learning_rate: self.learning_rate,
+                integral: self.integral.unwrap_or(IntegralEstimator::BsdfSampled),
+            },
             initial_q: self.initial_q.unwrap_or(defaults.initial_q),
             uniform_mix: self.uniform_mix.unwrap_or(defaults.uniform_mix),
             max_normal_angle_deg: self.max_normal_angle.unwrap_or(defaults.max_normal_angle_deg),
@@ -592,6 +623,12 @@ impl Prepared {
     ) -> Result<(Image, RenderStatistics), String> {
         use crate::gpu::GpuGuide;
         let guide = self.guide.as_mut().filter(|_| settings.integrator.method.uses_guide());
+        if guide.is_some() && settings.schedule != crate::schedule::Schedule::Online {
+            return Err("the GPU tracer learns online only (--schedule online)".into());
+        }
+        if let Some(DirectionalGuide::Tree(_)) = guide.as_deref() {
+            return Err("the GPU tracer has no tree guide yet (--guide hemisphere, volume or mixture)".into());
+        }
         if self.gpu.is_none() {
             let context = crate::gpu::GpuContext::new()?;
             eprintln!("gpu: {}", context.describe());
@@ -599,7 +636,7 @@ impl Prepared {
                 Some(DirectionalGuide::Hemisphere(grid)) => Some(GpuGuide::Hemisphere(grid)),
                 Some(DirectionalGuide::Volume(volume)) => Some(GpuGuide::Volume(volume)),
                 Some(DirectionalGuide::Mixture(mixture)) => Some(GpuGuide::Mixture(mixture)),
-                None => None,
+                Some(DirectionalGuide::Tree(_)) | None => None,
             };
             let tracer = crate::gpu::GpuTracer::new(context, &self.scene, &settings.integrator, uploaded)?;
             self.gpu = Some(tracer);
@@ -610,7 +647,7 @@ impl Prepared {
             Some(DirectionalGuide::Hemisphere(grid)) => gpu.download_guide(grid)?,
             Some(DirectionalGuide::Volume(volume)) => gpu.download_volume(volume)?,
             Some(DirectionalGuide::Mixture(mixture)) => gpu.download_mixture(mixture)?,
-            None => {}
+            Some(DirectionalGuide::Tree(_)) | None => {}
         }
         Ok(result)
     }
@@ -658,6 +695,10 @@ impl Prepared {
                 render(scene, intersector, learners, settings, &mut on_pass)
             }
             Some(DirectionalGuide::Mixture(guide)) => {
+                let learners = Learners { directions: Some(guide), lights, environment };
+                render(scene, intersector, learners, settings, &mut on_pass)
+            }
+            Some(DirectionalGuide::Tree(guide)) => {
                 let learners = Learners { directions: Some(guide), lights, environment };
                 render(scene, intersector, learners, settings, &mut on_pass)
             }
@@ -1015,6 +1056,7 @@ fn run_render(args: &RenderArgs) -> Result<(), String> {
         budget,
         seed: options.seed,
         train_seconds: options.train_seconds,
+        schedule: options.schedule,
     };
     let (image, statistics, checkpoints) =
         pool.install(|| render_prepared(&mut prepared, &settings, reference.as_ref(), &[], true))?;
@@ -1059,8 +1101,13 @@ fn run_reference(args: &ReferenceArgs) -> Result<(), String> {
         environment_sampling: args.env_sampling,
         ..Default::default()
     };
-    let settings =
-        RenderSettings { integrator, budget: Budget::SamplesPerPixel(args.spp), seed: args.seed, train_seconds: 0.0 };
+    let settings = RenderSettings {
+        integrator,
+        budget: Budget::SamplesPerPixel(args.spp),
+        seed: args.seed,
+        train_seconds: 0.0,
+        schedule: Schedule::Online,
+    };
     let (image, statistics, _) = pool.install(|| render_prepared(&mut prepared, &settings, None, &[], true))?;
     write_outputs(&args.out, &image, args.pfm)?;
     let json = statistics_json(args.integrator, &prepared, &statistics, &image, pool.current_num_threads());
@@ -1120,6 +1167,7 @@ fn run_compare(args: &CompareArgs) -> Result<(), String> {
             budget: Budget::Seconds(args.seconds),
             seed: options.seed,
             train_seconds: options.train_seconds,
+            schedule: options.schedule,
         };
         let (image, statistics, checkpoints) =
             pool.install(|| render_prepared(&mut prepared, &settings, Some(&reference), &report_times, true))?;

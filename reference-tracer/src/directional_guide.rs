@@ -4,7 +4,7 @@
 
 use guiding_core::{
     GaussianMixture, GaussianMixtureSettings, Guide, GuideStats, HemisphereGrid, HemisphereGridSettings,
-    IrradianceVolume, IrradianceVolumeSettings,
+    IrradianceVolume, IrradianceVolumeSettings, SpatialDirectionalTree, SpatialDirectionalTreeSettings,
 };
 
 use crate::scene::Scene;
@@ -18,6 +18,8 @@ pub enum GuideStructure {
     Volume,
     /// A grid of cells, each with a von Mises–Fisher mixture over the sphere.
     Mixture,
+    /// A spatial binary tree whose leaves hold directional quadtrees, both adaptive.
+    Tree,
 }
 
 impl GuideStructure {
@@ -27,6 +29,7 @@ impl GuideStructure {
             GuideStructure::Hemisphere => "hemisphere",
             GuideStructure::Volume => "volume",
             GuideStructure::Mixture => "mixture",
+            GuideStructure::Tree => "tree",
         }
     }
 
@@ -36,7 +39,8 @@ impl GuideStructure {
             "hemisphere" => Ok(GuideStructure::Hemisphere),
             "volume" => Ok(GuideStructure::Volume),
             "mixture" => Ok(GuideStructure::Mixture),
-            _ => Err(format!("unknown guide structure `{s}` (hemisphere, volume, mixture)")),
+            "tree" => Ok(GuideStructure::Tree),
+            _ => Err(format!("unknown guide structure `{s}` (hemisphere, volume, mixture, tree)")),
         }
     }
 }
@@ -50,6 +54,14 @@ pub enum DirectionalGuideSettings {
     Volume(IrradianceVolumeSettings),
     /// A [`GaussianMixture`] over the scene's bounds.
     Mixture(GaussianMixtureSettings),
+    /// A [`SpatialDirectionalTree`] over the scene's bounds.
+    Tree(SpatialDirectionalTreeSettings),
+}
+
+impl From<SpatialDirectionalTreeSettings> for DirectionalGuideSettings {
+    fn from(settings: SpatialDirectionalTreeSettings) -> Self {
+        DirectionalGuideSettings::Tree(settings)
+    }
 }
 
 impl From<IrradianceVolumeSettings> for DirectionalGuideSettings {
@@ -79,6 +91,8 @@ pub enum DirectionalGuide {
     Volume(IrradianceVolume),
     /// Cells with vMF mixtures.
     Mixture(GaussianMixture),
+    /// Spatial leaves with directional quadtrees.
+    Tree(SpatialDirectionalTree),
 }
 
 impl DirectionalGuide {
@@ -100,6 +114,12 @@ impl DirectionalGuide {
                     .map(DirectionalGuide::Mixture)
                     .map_err(|e| format!("mixture guide: {e}"))
             }
+            DirectionalGuideSettings::Tree(settings) => {
+                let (low, high) = scene.bounds();
+                SpatialDirectionalTree::new(low, high, settings)
+                    .map(DirectionalGuide::Tree)
+                    .map_err(|e| format!("tree guide: {e}"))
+            }
         }
     }
 
@@ -109,6 +129,7 @@ impl DirectionalGuide {
             DirectionalGuide::Hemisphere(_) => GuideStructure::Hemisphere,
             DirectionalGuide::Volume(_) => GuideStructure::Volume,
             DirectionalGuide::Mixture(_) => GuideStructure::Mixture,
+            DirectionalGuide::Tree(_) => GuideStructure::Tree,
         }
     }
 
@@ -118,6 +139,7 @@ impl DirectionalGuide {
             DirectionalGuide::Hemisphere(guide) => guide.stats(),
             DirectionalGuide::Volume(guide) => guide.stats(),
             DirectionalGuide::Mixture(guide) => guide.stats(),
+            DirectionalGuide::Tree(guide) => guide.stats(),
         }
     }
 
@@ -150,6 +172,13 @@ impl DirectionalGuide {
                     stats.memory_bytes >> 10
                 )
             }
+            DirectionalGuide::Tree(guide) => format!(
+                "tree: {} leaves, {} directional nodes, {} KiB of {} KiB",
+                guide.leaf_count(),
+                guide.directional_node_count(),
+                stats.memory_bytes >> 10,
+                guide.settings().budget_bytes >> 10
+            ),
         }
     }
 }

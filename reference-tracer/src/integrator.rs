@@ -7,8 +7,8 @@
 use glam::{Vec2, Vec3};
 use guiding_core::environment::{EnvCell, EnvSample};
 use guiding_core::{
-    DirectionalDistribution, EnvTileGuide, Guide, Hit, Intersector, Lambertian, LightGuide, Pcg32, Ray,
-    SampledDirection, ScatteringFunction,
+    DirectionalDistribution, EnvTileGuide, Guide, Hit, IntegralEstimator, Intersector, Lambertian, LightGuide, Pcg32,
+    Ray, SampledDirection, ScatteringFunction,
 };
 
 use crate::color::luminance;
@@ -308,6 +308,9 @@ pub struct PathTracer<'a, I: Intersector, G: Guide> {
     environment_choice: f32,
     /// Whether some material has an opacity texture: rays then pass through it.
     masks: bool,
+    /// The guide learns from the path's own continuation (no integral estimate at the
+    /// next vertex: every vertex carries its successor's target back).
+    carries_path: bool,
 }
 
 /// Most masked surfaces a ray passes through before it counts as blocked.
@@ -337,6 +340,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         let environment_guide =
             environment_guide.filter(|_| settings.environment_sampling == EnvironmentSampling::Tiles);
         let masks = scene.has_masks();
+        let carries_path = guide.is_some_and(|g| g.update_rule().integral == IntegralEstimator::PathContinuation);
         Self {
             scene,
             intersector,
@@ -347,6 +351,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             ray_epsilon,
             environment_choice,
             masks,
+            carries_path,
         }
     }
 
@@ -517,7 +522,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                 Some(guide) if !delta => clock.time(|| guide.locate(point, normal)),
                 _ => None,
             };
-            if learning && !delta {
+            if learning && !delta && !self.carries_path {
                 if let (Some(last), Some(region), Some(guide)) = (scratch.vertices.last_mut(), region, self.guide) {
                     let (u, u_lobe) = (rng.next_vec2(), rng.next_f32());
                     let estimate = clock.time(|| match material.surface {
@@ -560,6 +565,19 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                 }
             }
 
+            // Russian roulette, decided before the direction is drawn: a survival that
+            // depended on the direction (through its fs·cos/pdf) would make the traced
+            // directions, which are all the guide learns from, follow p·survival instead
+            // of the p they are recorded with.
+            let mut survival = 1.0;
+            if depth + 1 >= settings.rr_depth {
+                survival = throughput.max_element().min(0.95);
+                if survival <= 0.0 || rng.next_f32() >= survival {
+                    break;
+                }
+                throughput /= survival;
+            }
+
             // Choose the next direction: the guide with probability p_guide where a region
             // exists, the BSDF otherwise; weight by the mixture pdf.
             let (u_choice, u_lobe, u) = (rng.next_f32(), rng.next_f32(), rng.next_vec2());
@@ -568,17 +586,22 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                 (s.wi, s.weight, s.pdf, true)
             } else {
                 let guide_probability = if distribution.is_some() { settings.guide_probability } else { 0.0 };
-                let (wi, f) = match &distribution {
+                // A direction drawn from the guide comes with its guide pdf: not evaluated twice.
+                let (wi, f, guide_pdf) = match &distribution {
                     Some(distribution) if u_choice < guide_probability => {
                         let s = clock.time(|| distribution.sample(u));
-                        (s.direction, material.eval(&shading, wo, s.direction))
+                        (s.direction, material.eval(&shading, wo, s.direction), Some(s.pdf))
                     }
                     _ => {
                         let Some(s) = material.sample(&shading, wo, u, u_lobe) else { break };
-                        (s.wi, s.weight * s.pdf)
+                        (s.wi, s.weight * s.pdf, None)
                     }
                 };
-                let pdf = self.scatter_pdf(material, &shading, wo, wi, distribution.as_ref(), clock);
+                let guide_pdf = match (&distribution, guide_pdf) {
+                    (Some(distribution), None) => Some(clock.time(|| distribution.pdf(wi))),
+                    (_, known) => known,
+                };
+                let pdf = self.scatter_pdf(material, &shading, wo, wi, guide_pdf);
                 if !(pdf.is_finite() && pdf > 0.0) || f == Vec3::ZERO {
                     break;
                 }
@@ -588,20 +611,17 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                 break;
             }
             throughput *= factor;
-            if depth + 1 >= settings.rr_depth {
-                let survival = throughput.max_element().min(0.95);
-                if survival <= 0.0 || rng.next_f32() >= survival {
-                    break;
-                }
-                throughput /= survival;
-            }
+            // The scalar factor this vertex applies to what arrives along `wi`: fs·cos/pdf
+            // and, past Russian roulette, 1/survival, exactly as the throughput has it.
+            let carried = luminance(factor) / survival;
             // Only directions that are actually traced are learned from. A vertex without
-            // an estimate of its own (delta, or no region) passes its target back to the
-            // previous one, scaled by its throughput factor.
+            // an estimate of its own (delta, or no region, or every vertex when the guide
+            // learns from the path's continuation) passes its target back to the previous
+            // one, scaled by its factor.
             if learning {
-                if delta || region.is_none() {
+                if delta || region.is_none() || self.carries_path {
                     if let Some(last) = scratch.vertices.last_mut() {
-                        last.onward = Onward::Carry(luminance(factor));
+                        last.onward = Onward::Carry(carried);
                     }
                 }
                 scratch.vertices.push(LearningVertex {
@@ -629,22 +649,21 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         radiance
     }
 
-    /// The pdf of scattering `wi` from `wo`: the BSDF's, mixed with the guide's where a
-    /// region exists.
+    /// The pdf of scattering `wi` from `wo`: the BSDF's, mixed with the guide's density
+    /// `guide_pdf` of `wi` where a region exists.
     fn scatter_pdf(
         &self,
         material: &Material,
         shading: &ShadingFrame,
         wo: Vec3,
         wi: Vec3,
-        distribution: Option<&G::Distribution<'_>>,
-        clock: &mut GuideClock,
+        guide_pdf: Option<f32>,
     ) -> f32 {
         let bsdf_pdf = material.pdf(shading, wo, wi);
-        match distribution {
-            Some(distribution) => {
+        match guide_pdf {
+            Some(guide_pdf) => {
                 let p = self.settings.guide_probability;
-                p * clock.time(|| distribution.pdf(wi)) + (1.0 - p) * bsdf_pdf
+                p * guide_pdf + (1.0 - p) * bsdf_pdf
             }
             None => bsdf_pdf,
         }
@@ -731,7 +750,8 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         if occluded {
             return Vec3::ZERO;
         }
-        let weight = power_heuristic(light_pdf, self.scatter_pdf(material, shading, wo, wi, distribution, clock));
+        let guide_pdf = distribution.map(|distribution| clock.time(|| distribution.pdf(wi)));
+        let weight = power_heuristic(light_pdf, self.scatter_pdf(material, shading, wo, wi, guide_pdf));
         f * emitted * (weight * transmittance / light_pdf)
     }
 

@@ -28,4 +28,5 @@ pub mod report;
 pub mod sampling;
 pub mod scene;
 pub mod scene_intersector;
+pub mod schedule;
 pub mod texture;

@@ -13,6 +13,7 @@ use crate::integrator::{
 };
 use crate::output::Image;
 use crate::scene::Scene;
+use crate::schedule::{Schedule, Step, Training};
 
 /// When to stop.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -52,6 +53,9 @@ pub struct RenderSettings {
     /// budget (so comparisons at equal time stay fair); a sample budget counts only the
     /// passes kept.
     pub train_seconds: f64,
+    /// When guided methods learn: every pass, or in doubling training iterations
+    /// followed by a frozen final image.
+    pub schedule: Schedule,
 }
 
 /// What the passes did.
@@ -136,15 +140,24 @@ pub fn render<I: Intersector, G: Guide>(
     let mut film = vec![[0.0f64; 3]; width * height];
     let mut statistics = RenderStatistics::default();
     let start = Instant::now();
+    let guided = settings.integrator.method.uses_guide() && guide.is_some();
+    let mut training = Training::new(guided && settings.schedule == Schedule::Iterative);
+    // Passes traced so far, kept or not: each gets its own seed.
+    let mut traced = 0u32;
     loop {
-        let pass = statistics.passes;
+        let pass = traced;
+        traced += 1;
+        let integrator = IntegratorSettings {
+            learn: settings.integrator.learn && (settings.schedule == Schedule::Online || training.learning()),
+            ..settings.integrator
+        };
         let tracer = PathTracer::new(
             scene,
             intersector,
             guide.as_deref(),
             light_guide.as_deref(),
             environment_guide.as_deref(),
-            settings.integrator,
+            integrator,
         );
         let pass_seed = pass_seed(settings.seed, pass);
         // Rows come back in order, so the pass sum is added up in the same order on every
@@ -175,7 +188,15 @@ pub fn render<I: Intersector, G: Guide>(
         });
         statistics.add_pass(pass_sum, width * height, counters);
         let rebuild = Instant::now();
-        if settings.integrator.method.uses_guide() {
+        let step = match settings.schedule {
+            Schedule::Online => None,
+            Schedule::Iterative => Some(training.after_pass(start.elapsed().as_secs_f64(), settings.budget)),
+        };
+        let refits = match step {
+            None => true,
+            Some(step) => matches!(step, Step::Refit { .. }),
+        };
+        if settings.integrator.method.uses_guide() && refits {
             if let Some(guide) = guide.as_deref_mut() {
                 guide.rebuild_sampling();
             }
@@ -195,7 +216,12 @@ pub fn render<I: Intersector, G: Guide>(
         let learns = settings.integrator.method.uses_guide()
             || settings.integrator.light_selection == LightSelection::Learned
             || learns_environment;
-        if end_of_pass(&mut film, &mut statistics, settings, learns, start, &mut on_pass) {
+        let seconds = start.elapsed().as_secs_f64();
+        let discarded = match step {
+            Some(Step::Train | Step::Refit { .. }) => true,
+            Some(Step::Render) | None => learns && seconds < settings.train_seconds,
+        };
+        if end_of_pass(&mut film, &mut statistics, settings, discarded, start, &mut on_pass) {
             break;
         }
     }
@@ -203,19 +229,18 @@ pub fn render<I: Intersector, G: Guide>(
 }
 
 /// The bookkeeping after a pass has been added to `film` and `statistics`, shared by
-/// the CPU and GPU render loops: a training pass (`learns`, within
-/// `settings.train_seconds`) is discarded; otherwise `on_pass` sees the state. Returns
-/// whether the budget is reached.
+/// the CPU and GPU render loops: a training pass (`discarded`) is taken out of the film
+/// again; otherwise `on_pass` sees the state. Returns whether the budget is reached.
 pub(crate) fn end_of_pass(
     film: &mut [[f64; 3]],
     statistics: &mut RenderStatistics,
     settings: &RenderSettings,
-    learns: bool,
+    discarded: bool,
     start: Instant,
     on_pass: &mut impl FnMut(&Progress<'_>),
 ) -> bool {
     let seconds = start.elapsed().as_secs_f64();
-    if learns && seconds < settings.train_seconds {
+    if discarded {
         film.iter_mut().for_each(|p| *p = [0.0; 3]);
         statistics.pass_means.clear();
         statistics.passes = 0;

@@ -125,6 +125,7 @@ fn cornell_renders_the_same_with_either_intersector() {
             budget: reference_tracer::render::Budget::SamplesPerPixel(64),
             seed: 9,
             train_seconds: 0.0,
+            schedule: reference_tracer::schedule::Schedule::Online,
         };
         let (_, statistics) = reference_tracer::render::render(
             &prepared.scene,

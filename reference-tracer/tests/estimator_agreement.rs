@@ -8,12 +8,16 @@ mod support;
 
 use guiding_core::{
     GaussianMixtureSettings, HemisphereGridSettings, IntegralEstimator, IrradianceVolumeSettings, LearningRate,
-    UpdateRule,
+    SpatialDirectionalTreeSettings, UpdateRule,
 };
+use reference_tracer::cli::{prepare_with_lights, LightRequest};
+use reference_tracer::directional_guide::DirectionalGuide;
 use reference_tracer::directional_guide::DirectionalGuideSettings;
 use reference_tracer::integrator::{EnvironmentSampling, LightSelection, Method};
+use reference_tracer::render::{Budget, RenderSettings};
+use reference_tracer::scene_intersector::IntersectorChoice;
 use serde_json::json;
-use support::{mean_estimate, render_scene, settings};
+use support::{mean_estimate, render_scene, settings, Schedule};
 
 /// A closed box whose inward faces all emit Le and reflect with albedo ρ: the radiance
 /// everywhere is Le/(1-ρ).
@@ -129,6 +133,18 @@ fn methods_and_guides(probes: usize) -> Vec<(String, Method, Option<DirectionalG
     ] {
         cases.push((name.into(), method, Some(volume(rate).into())));
     }
+    // A low split threshold makes the tree split in space within the first passes.
+    let tree =
+        |update_rule| SpatialDirectionalTreeSettings { update_rule, min_split_records: 64, ..Default::default() };
+    let path = UpdateRule { learning_rate: LearningRate::SimpleAverage, integral: IntegralEstimator::PathContinuation };
+    let sampled = UpdateRule { learning_rate: LearningRate::Exponential { alpha: 0.3 }, ..Default::default() };
+    for (name, method, rule) in [
+        ("guided tree path", Method::Guided, path),
+        ("guided tree sampled exponential", Method::Guided, sampled),
+        ("guided-nee tree path", Method::GuidedNee, path),
+    ] {
+        cases.push((name.into(), method, Some(tree(rule).into())));
+    }
     cases
 }
 
@@ -150,6 +166,72 @@ fn cornell_means_agree_across_integrators_and_update_rules() {
 #[test]
 fn door_means_agree_across_integrators_and_update_rules() {
     assert_means_agree(&support::repository_scene("door", 32, 24), 600, 256, 512);
+}
+
+/// The tree under the iterative schedule (training iterations discarded, the final image
+/// frozen) agrees with nee, guided with and without next-event estimation.
+fn assert_iterative_tree_agrees(scene: &std::path::Path, spp: u32, reference_spp: u32) {
+    let reference = mean_estimate(&render_scene(scene, settings(Method::Nee), None, reference_spp, 13));
+    let tree = SpatialDirectionalTreeSettings { min_split_records: 64, ..Default::default() };
+    for (i, method) in [Method::Guided, Method::GuidedNee].into_iter().enumerate() {
+        let (_, statistics) = support::render_scheduled(
+            scene,
+            settings(method),
+            Some(tree.into()),
+            spp,
+            20 + i as u64,
+            Schedule::Iterative,
+        );
+        assert!(statistics.training_passes > 0 && statistics.passes == spp, "{statistics:?}");
+        support::assert_agree(
+            &format!("{} tree iterative vs nee", method.name()),
+            &mean_estimate(&statistics),
+            &reference,
+        );
+    }
+}
+
+#[test]
+fn cornell_and_door_agree_under_the_iterative_schedule() {
+    assert_iterative_tree_agrees(&support::repository_scene("cornell", 32, 32), 128, 256);
+    assert_iterative_tree_agrees(&support::repository_scene("door", 32, 24), 256, 512);
+}
+
+#[test]
+fn path_continuation_targets_carry_russian_roulette() {
+    // In a furnace every vertex's target is an estimate of the same radiance Le/(1-ρ), so
+    // every leaf learns the flux 2π·Le/(1-ρ) over the hemisphere it was sampled in, with
+    // roulette from the first vertex as without any: a target that left out 1/survival
+    // would learn far less under roulette, and so would one whose survival depended on
+    // the direction drawn. Without roulette the paths stop at 64 vertices, and the last
+    // vertices' targets lose the light beyond (2.4 % of the mean here).
+    let (emission, albedo) = (0.5f32, 0.6f32);
+    let expected = 2.0 * std::f64::consts::PI * emission as f64 / (1.0 - albedo as f64);
+    let scene = furnace_scene(emission, albedo);
+    for rr_depth in [0, 64] {
+        let integrator =
+            reference_tracer::integrator::IntegratorSettings { max_depth: 64, rr_depth, ..settings(Method::Guided) };
+        let lights = LightRequest::new(Some(LightSelection::Power), Some(EnvironmentSampling::Luminance), false);
+        let tree = SpatialDirectionalTreeSettings::default();
+        let mut prepared =
+            prepare_with_lights(&scene, IntersectorChoice::default(), Some(tree.into()), lights).unwrap();
+        let render = RenderSettings {
+            integrator,
+            budget: Budget::SamplesPerPixel(64),
+            seed: 4,
+            train_seconds: 0.0,
+            schedule: Schedule::Online,
+        };
+        prepared.render(&render, |_| {}).unwrap();
+        let Some(DirectionalGuide::Tree(tree)) = &prepared.guide else { panic!("a tree guide") };
+        let fluxes: Vec<f64> = (0..tree.leaf_count() as u32).map(|leaf| tree.leaf_flux(leaf) as f64).collect();
+        let mean = fluxes.iter().sum::<f64>() / fluxes.len() as f64;
+        let tolerance = if rr_depth == 0 { 0.02 } else { 0.04 };
+        assert!(
+            (mean / expected - 1.0).abs() < tolerance,
+            "rr_depth {rr_depth}: mean leaf flux {mean}, exact {expected}"
+        );
+    }
 }
 
 #[test]

@@ -55,7 +55,13 @@ fn render(scene: &Path, device: Device, method: Method, spp: u32, seed: u64) -> 
     let (integrator, lights) = (integrator(method), power_lights());
     let mut prepared = prepare_with_lights(scene, IntersectorChoice::default(), None, lights).unwrap();
     prepared.device = device;
-    let settings = RenderSettings { integrator, budget: Budget::SamplesPerPixel(spp), seed, train_seconds: 0.0 };
+    let settings = RenderSettings {
+        integrator,
+        budget: Budget::SamplesPerPixel(spp),
+        seed,
+        train_seconds: 0.0,
+        schedule: reference_tracer::schedule::Schedule::Online,
+    };
     prepared.render(&settings, |_| {}).unwrap()
 }
 
@@ -110,6 +116,7 @@ fn unsupported_scenes_are_refused_with_a_reason() {
         budget: Budget::SamplesPerPixel(1),
         seed: 1,
         train_seconds: 0.0,
+        schedule: reference_tracer::schedule::Schedule::Online,
     };
     let error = prepared.render(&settings, |_| {}).expect_err("refused");
     assert!(error.contains("image environment"), "{error}");
@@ -154,7 +161,13 @@ fn render_learning(
     let (integrator, lights) = (integrator(method), power_lights());
     let mut prepared = prepare_with_lights(scene, IntersectorChoice::default(), Some(settings), lights).unwrap();
     prepared.device = device;
-    let settings = RenderSettings { integrator, budget: Budget::SamplesPerPixel(spp), seed, train_seconds: 0.0 };
+    let settings = RenderSettings {
+        integrator,
+        budget: Budget::SamplesPerPixel(spp),
+        seed,
+        train_seconds: 0.0,
+        schedule: reference_tracer::schedule::Schedule::Online,
+    };
     let (_, statistics) = prepared.render(&settings, |_| {}).unwrap();
     (statistics, prepared.guide.expect("a guide was built"))
 }
@@ -412,7 +425,13 @@ fn gpu_learned_guide_serves_the_cpu(settings: DirectionalGuideSettings, bytes: &
     assert_eq!(again, bytes, "the GPU's learned state round-trips exactly");
     prepared.guide = Some(loaded);
     let integrator = IntegratorSettings { method: Method::GuidedNee, learn: false, ..Default::default() };
-    let render_settings = RenderSettings { integrator, budget: Budget::SamplesPerPixel(96), seed, train_seconds: 0.0 };
+    let render_settings = RenderSettings {
+        integrator,
+        budget: Budget::SamplesPerPixel(96),
+        seed,
+        train_seconds: 0.0,
+        schedule: reference_tracer::schedule::Schedule::Online,
+    };
     let (_, guided) = prepared.render(&render_settings, |_| {}).unwrap();
     let (_, nee) = render(&scene, Device::Cpu, Method::Nee, 192, seed + 1);
     support::assert_agree(
@@ -509,6 +528,7 @@ fn gpu_training_passes_are_discarded_like_the_cpus() {
         budget: Budget::SamplesPerPixel(4),
         seed: 81,
         train_seconds: 0.5,
+        schedule: reference_tracer::schedule::Schedule::Online,
     };
     let (_, statistics) = prepared.render(&settings, |_| {}).unwrap();
     assert!(statistics.training_passes > 0, "no training pass");

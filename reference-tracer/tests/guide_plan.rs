@@ -124,6 +124,7 @@ fn a_scene_of_mirrors_and_glass_gets_no_directional_guide() {
         budget: reference_tracer::render::Budget::SamplesPerPixel(2),
         seed: 1,
         train_seconds: 0.0,
+        schedule: reference_tracer::schedule::Schedule::Online,
     };
     let mut prepared = prepared;
     let (image, _) = prepared.render(&settings, |_| {}).unwrap();

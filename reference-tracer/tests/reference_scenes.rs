@@ -25,7 +25,13 @@ fn render_small(path: &Path, width: u32, height: u32, spp: u32) -> Image {
     let mut prepared = prepare_with_lights(path, IntersectorChoice::default(), None, lights)
         .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     prepared.scene.camera = prepared.scene.camera.with_resolution(width, height);
-    let settings = RenderSettings { integrator, budget: Budget::SamplesPerPixel(spp), seed: 5, train_seconds: 0.0 };
+    let settings = RenderSettings {
+        integrator,
+        budget: Budget::SamplesPerPixel(spp),
+        seed: 5,
+        train_seconds: 0.0,
+        schedule: reference_tracer::schedule::Schedule::Online,
+    };
     let (image, _) = prepared.render(&settings, |_| {}).unwrap();
     assert!(
         image.pixels.iter().all(|p| p.is_finite() && p.min_element() >= 0.0),

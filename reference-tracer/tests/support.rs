@@ -9,6 +9,7 @@ use reference_tracer::integrator::{IntegratorSettings, Method};
 use reference_tracer::output::Image;
 use reference_tracer::render::{Budget, RenderSettings, RenderStatistics};
 use reference_tracer::scene_intersector::IntersectorChoice;
+pub use reference_tracer::schedule::Schedule;
 
 /// A fresh temporary folder for one test.
 pub fn temp_folder(name: &str) -> PathBuf {
@@ -100,6 +101,18 @@ pub fn render_image(
     spp: u32,
     seed: u64,
 ) -> (Image, RenderStatistics) {
+    render_scheduled(scene, integrator, guide, spp, seed, Schedule::Online)
+}
+
+/// [`render_image`] under a training `schedule`.
+pub fn render_scheduled(
+    scene: &Path,
+    integrator: IntegratorSettings,
+    guide: Option<DirectionalGuideSettings>,
+    spp: u32,
+    seed: u64,
+    schedule: Schedule,
+) -> (Image, RenderStatistics) {
     // Learned light selection and environment tiles get guides with the default settings.
     let lights = LightRequest::new(
         Some(integrator.light_selection),
@@ -107,7 +120,8 @@ pub fn render_image(
         integrator.method.uses_nee(),
     );
     let mut prepared = prepare_with_lights(scene, IntersectorChoice::default(), guide, lights).unwrap();
-    let settings = RenderSettings { integrator, budget: Budget::SamplesPerPixel(spp), seed, train_seconds: 0.0 };
+    let settings =
+        RenderSettings { integrator, budget: Budget::SamplesPerPixel(spp), seed, train_seconds: 0.0, schedule };
     prepared.render(&settings, |_| {}).unwrap()
 }
 

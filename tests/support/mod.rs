@@ -7,7 +7,7 @@ use guiding_core::mixture::{VmfLobe, VmfMixture};
 use guiding_core::{
     DirectionSample, DirectionalDistribution, Frame, GaussianMixture, GaussianMixtureSettings, Guide, HemisphereGrid,
     HemisphereGridSettings, HemisphereMapping, IrradianceVolume, IrradianceVolumeSettings, MixtureRegion, PatchLayout,
-    ProbeId, Triangle, UpdateRule, VolumeRegion,
+    ProbeId, SpatialDirectionalTree, SpatialDirectionalTreeSettings, TreeRegion, Triangle, UpdateRule, VolumeRegion,
 };
 
 /// Which way a box's faces look.
@@ -239,6 +239,46 @@ impl GuideAccess for GaussianMixture {
 
     fn integration_depth(&self) -> u32 {
         3
+    }
+}
+
+/// A spatial × directional tree over [`box_walls`]' box with the given rule (one leaf
+/// until it learns).
+pub fn spatial_directional_tree(rule: UpdateRule) -> SpatialDirectionalTree {
+    let settings = SpatialDirectionalTreeSettings { update_rule: rule, ..Default::default() };
+    SpatialDirectionalTree::new(Vec3::NEG_ONE, Vec3::ONE, settings).expect("tree over the box")
+}
+
+/// Levels of the full quadtree [`GuideAccess::set_entries`] gives a tree's leaf.
+pub const TREE_ENTRY_DEPTH: u32 = 3;
+
+impl GuideAccess for SpatialDirectionalTree {
+    fn test_points(&self) -> Vec<(Vec3, Vec3)> {
+        box_test_points()
+    }
+
+    fn with_budget(budget_bytes: usize) -> Self {
+        let settings = SpatialDirectionalTreeSettings { budget_bytes, ..Default::default() };
+        SpatialDirectionalTree::new(Vec3::NEG_ONE, Vec3::ONE, settings).expect("tree over the box")
+    }
+
+    fn entry_count(&self) -> usize {
+        1 << (2 * TREE_ENTRY_DEPTH)
+    }
+
+    /// The leaf's quadtree becomes a full tree of 4³ cells holding `values` as flux.
+    fn set_entries(&mut self, region: TreeRegion, values: &[f32]) {
+        self.set_leaf_cells(region, TREE_ENTRY_DEPTH, values);
+    }
+
+    /// Every leaf's learned flux (its cells' shares are probabilities, checked by
+    /// `validate`).
+    fn all_values(&self) -> Vec<f32> {
+        (0..self.leaf_count() as u32).map(|leaf| self.leaf_flux(leaf)).collect()
+    }
+
+    fn floor(&self) -> f32 {
+        0.0
     }
 }
 

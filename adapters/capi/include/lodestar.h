@@ -141,6 +141,10 @@ enum LodestarIntegralEstimator
   // Lambertian: as `BsdfWeightedSum`; other BSDFs: one direction drawn from the BSDF.
   // A C callback cannot sample, so through this API it equals `BsdfWeightedSum`.
   LODESTAR_INTEGRAL_ESTIMATOR_BSDF_SAMPLED = 3,
+  // No estimate: the caller carries the path's own continuation back as the target
+  // (what Practical Path Guiding records); asked for one, the guide answers as
+  // `BsdfSampled`.
+  LODESTAR_INTEGRAL_ESTIMATOR_PATH_CONTINUATION = 4,
 };
 #ifndef __cplusplus
 #if __STDC_VERSION__ >= 202311L

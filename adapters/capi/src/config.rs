@@ -52,6 +52,10 @@ pub enum LodestarIntegralEstimator {
     /// Lambertian: as `BsdfWeightedSum`; other BSDFs: one direction drawn from the BSDF.
     /// A C callback cannot sample, so through this API it equals `BsdfWeightedSum`.
     BsdfSampled = 3,
+    /// No estimate: the caller carries the path's own continuation back as the target
+    /// (what Practical Path Guiding records); asked for one, the guide answers as
+    /// `BsdfSampled`.
+    PathContinuation = 4,
 }
 
 /// Everything that shapes a guide. Fill it with `lodestar_guide_config_default`, then
@@ -128,6 +132,7 @@ impl LodestarGuideConfig {
                 IntegralEstimator::StratifiedPatches => LodestarIntegralEstimator::StratifiedPatches,
                 IntegralEstimator::MaxEntry => LodestarIntegralEstimator::MaxEntry,
                 IntegralEstimator::BsdfSampled => LodestarIntegralEstimator::BsdfSampled,
+                IntegralEstimator::PathContinuation => LodestarIntegralEstimator::PathContinuation,
             } as u32,
         }
     }
@@ -170,7 +175,8 @@ impl LodestarGuideConfig {
             1 => IntegralEstimator::StratifiedPatches,
             2 => IntegralEstimator::MaxEntry,
             3 => IntegralEstimator::BsdfSampled,
-            other => return Err(unknown("integral_estimator", other, "LodestarIntegralEstimator (0..=3)")),
+            4 => IntegralEstimator::PathContinuation,
+            other => return Err(unknown("integral_estimator", other, "LodestarIntegralEstimator (0..=4)")),
         };
         let two_sided = match self.two_sided {
             0 => false,
@@ -245,7 +251,7 @@ mod tests {
             (|c| c.structure = 7, LodestarStatus::UnknownEnumValue, "structure"),
             (|c| c.mapping = 2, LodestarStatus::UnknownEnumValue, "mapping"),
             (|c| c.learning_rate = 9, LodestarStatus::UnknownEnumValue, "learning_rate"),
-            (|c| c.integral_estimator = 4, LodestarStatus::UnknownEnumValue, "integral_estimator"),
+            (|c| c.integral_estimator = 5, LodestarStatus::UnknownEnumValue, "integral_estimator"),
             (|c| c.initial_q = f32::NAN, LodestarStatus::NonFiniteArgument, "initial_q"),
             (|c| c.uniform_mix = 2.0, LodestarStatus::InvalidConfig, "uniform_mix"),
             (|c| c.two_sided = 2, LodestarStatus::InvalidArgument, "two_sided"),

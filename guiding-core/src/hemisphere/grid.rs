@@ -514,13 +514,17 @@ impl Guide for HemisphereGrid {
             None => bsdf.eval_cos(frame.to_world(self.patch_centers[k]), wo),
         };
         let estimate = match self.settings.update_rule.integral {
-            IntegralEstimator::BsdfSampled if lambertian.is_none() && bsdf.can_sample() => {
+            IntegralEstimator::BsdfSampled | IntegralEstimator::PathContinuation
+                if lambertian.is_none() && bsdf.can_sample() =>
+            {
                 let Some(sample) = bsdf.sample_cos(wo, u) else { return 0.0 };
                 let patch = self.settings.layout.patch_of(frame.to_local(sample.wi));
                 let q = patch.map_or(0.0, |k| atomic_f32::load(&q[k]));
                 q as f64 * sample.weight as f64
             }
-            IntegralEstimator::BsdfWeightedSum | IntegralEstimator::BsdfSampled => match lambertian {
+            IntegralEstimator::BsdfWeightedSum
+            | IntegralEstimator::BsdfSampled
+            | IntegralEstimator::PathContinuation => match lambertian {
                 Some(albedo) => {
                     let sum = atomic_f32::load(&self.lambertian_sums[probe.0 as usize]).max(0.0);
                     albedo as f64 / core::f64::consts::PI * sum as f64
@@ -547,6 +551,10 @@ impl Guide for HemisphereGrid {
             }
         };
         estimate.min(f32::MAX as f64) as f32
+    }
+
+    fn update_rule(&self) -> crate::update_rule::UpdateRule {
+        self.settings.update_rule
     }
 
     fn rebuild_sampling(&mut self) {

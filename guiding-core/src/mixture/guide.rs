@@ -370,6 +370,10 @@ impl Guide for GaussianMixture {
         (scale as f64 * sum).min(f32::MAX as f64) as f32
     }
 
+    fn update_rule(&self) -> crate::update_rule::UpdateRule {
+        self.settings.update_rule
+    }
+
     fn rebuild_sampling(&mut self) {
         let lobes = self.settings.lobes;
         for index in 0..self.mixtures.len() {

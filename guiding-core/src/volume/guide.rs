@@ -533,18 +533,24 @@ impl Guide for IrradianceVolume {
         };
         let terms = (0..patches).map(|k| atomic_f32::load(&q[k]) as f64);
         let estimate = match self.settings.update_rule.integral {
-            IntegralEstimator::BsdfSampled if bsdf.lambertian_albedo().is_none() && bsdf.can_sample() => {
+            IntegralEstimator::BsdfSampled | IntegralEstimator::PathContinuation
+                if bsdf.lambertian_albedo().is_none() && bsdf.can_sample() =>
+            {
                 let Some(sample) = bsdf.sample_cos(wo, u) else { return 0.0 };
                 let q = self.settings.layout.patch_of(sample.wi).map_or(0.0, |k| atomic_f32::load(&q[k]));
                 q as f64 * sample.weight as f64
             }
-            IntegralEstimator::BsdfWeightedSum | IntegralEstimator::BsdfSampled
+            IntegralEstimator::BsdfWeightedSum
+            | IntegralEstimator::BsdfSampled
+            | IntegralEstimator::PathContinuation
                 if bsdf.lambertian_albedo().is_some() =>
             {
                 let albedo = bsdf.lambertian_albedo().unwrap_or(0.0) as f64;
                 albedo * irradiance_sh::cosine_integral(&self.irradiance[region.leaf as usize], region.normal) as f64
             }
-            IntegralEstimator::BsdfWeightedSum | IntegralEstimator::BsdfSampled => {
+            IntegralEstimator::BsdfWeightedSum
+            | IntegralEstimator::BsdfSampled
+            | IntegralEstimator::PathContinuation => {
                 solid_angle * terms.enumerate().map(|(k, q)| q * at_center(k) as f64).sum::<f64>()
             }
             IntegralEstimator::StratifiedPatches => {
@@ -557,6 +563,10 @@ impl Guide for IrradianceVolume {
             }
         };
         estimate.min(f32::MAX as f64) as f32
+    }
+
+    fn update_rule(&self) -> crate::update_rule::UpdateRule {
+        self.settings.update_rule
     }
 
     fn rebuild_sampling(&mut self) {

@@ -471,7 +471,8 @@ impl GpuTracer {
             }
             statistics.add_pass(sum, width * height, counters);
             let learns = settings.integrator.method.uses_guide() && self.params.guide[1] != 0;
-            if end_of_pass(&mut film, &mut statistics, settings, learns, start, &mut on_pass) {
+            let discarded = learns && start.elapsed().as_secs_f64() < settings.train_seconds;
+            if end_of_pass(&mut film, &mut statistics, settings, discarded, start, &mut on_pass) {
                 break;
             }
         }

@@ -78,7 +78,7 @@ static void config_errors(void) {
     EXPECT(lodestar_guide_create(&bad, p, 4, ix, 2, &guide), LODESTAR_STATUS_UNKNOWN_ENUM_VALUE, "mapping");
     bad = config, bad.learning_rate = 0xFFFFFFFFu;
     EXPECT(lodestar_guide_create(&bad, p, 4, ix, 2, &guide), LODESTAR_STATUS_UNKNOWN_ENUM_VALUE, "learning_rate");
-    bad = config, bad.integral_estimator = 4;
+    bad = config, bad.integral_estimator = 5;
     EXPECT(lodestar_guide_create(&bad, p, 4, ix, 2, &guide), LODESTAR_STATUS_UNKNOWN_ENUM_VALUE,
            "integral_estimator");
     bad = config, bad.initial_q = NAN;

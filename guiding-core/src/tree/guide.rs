@@ -1,0 +1,710 @@
+//! [`SpatialDirectionalTree`]: Q(x, ω) in a binary tree over space whose leaves each hold
+//! a quadtree over directions, refined together where paths land (Müller et al. 2017's
+//! SD-tree, learning the seed's targets).
+
+use alloc::vec::Vec;
+use core::f32::consts::PI;
+use core::sync::atomic::{AtomicU32, Ordering};
+
+use glam::{Vec2, Vec3};
+
+use super::quadtree::{self, EpochBlend, QuadNode, RefitRule, NODE_BYTES};
+use super::settings::SpatialDirectionalTreeSettings;
+use super::spatial::{locate_leaf, split_leaf, Parent, SpatialNode, LEAF, SPATIAL_NODE_BYTES};
+use super::square::{direction_to_square, square_to_direction, SQUARE_TO_SOLID_ANGLE};
+use crate::atomic_f32;
+use crate::distribution::{DirectionSample, DirectionalDistribution, MIN_SAMPLED_COS_THETA};
+use crate::error::Error;
+use crate::frame::Frame;
+use crate::guide::{Guide, GuideStats};
+use crate::scattering::ScatteringFunction;
+use crate::update_rule::{classify_target, LearningRate, UpdateOutcome, UpdateRule};
+
+/// A located region: a spatial leaf, and the surface normal its distribution folds onto.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TreeRegion {
+    /// Index of the spatial leaf.
+    pub leaf: u32,
+    /// Unit normal facing the side the path arrives from.
+    pub normal: Vec3,
+}
+
+/// One spatial leaf.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct SpatialLeaf {
+    /// Root of its directional quadtree in the arena.
+    pub(crate) root: u32,
+    /// ∫ L dω over the sphere the quadtree stands for (radiance × sr).
+    pub(crate) flux: f32,
+    /// Records learned from in all completed epochs (halved at each spatial split).
+    pub(crate) weight: f64,
+    /// Where the leaf hangs in the spatial tree.
+    pub(crate) parent: Parent,
+    /// Its box's size along x, y, z, scene units.
+    pub(crate) extent: Vec3,
+    /// Splits from the root.
+    pub(crate) depth: u32,
+}
+
+/// Bytes one spatial leaf costs (with its epoch's record counter).
+pub(crate) const LEAF_BYTES: usize = core::mem::size_of::<SpatialLeaf>() + core::mem::size_of::<AtomicU32>();
+
+/// Q(x, ω) as a spatial binary tree whose every leaf holds a directional quadtree over
+/// the sphere (Lambert's equal-area square), both refined between epochs where the
+/// records say so, within a byte budget.
+///
+/// Learning is by records: [`update_sampled`](Guide::update_sampled) adds target/pdf to
+/// the building sum of the quadtree cell the direction falls in (one lock-free add; the
+/// sampling side is read-only during a pass), so each cell estimates the flux ∫ L dω over
+/// its solid angle whatever density drew its directions. Between passes
+/// [`rebuild_sampling`](Guide::rebuild_sampling) blends each leaf's new estimate with its
+/// old one by the learning rate, splits directional cells holding more than
+/// `flux_fraction` of their leaf's flux, merges those holding less, and splits spatial
+/// leaves that took more than c·√R of the epoch's R records.
+///
+/// ```
+/// use glam::{Vec2, Vec3};
+/// use guiding_core::{DirectionalDistribution, Guide, Pcg32, SpatialDirectionalTree, SpatialDirectionalTreeSettings};
+/// let settings = SpatialDirectionalTreeSettings::default();
+/// let mut tree = SpatialDirectionalTree::new(Vec3::splat(-1.0), Vec3::ONE, settings).unwrap();
+/// let region = tree.locate(Vec3::new(0.0, -1.0, 0.0), Vec3::Y).unwrap();
+/// let light = Vec3::new(0.6, 0.8, 0.0);
+/// let mut rng = Pcg32::new(1, 1);
+/// // Each epoch refines where the last one found flux, then learns inside the new cells.
+/// for _epoch in 0..4 {
+///     for _ in 0..20_000 {
+///         let s = tree.sample(region, rng.next_vec2());
+///         let target = if s.direction.dot(light) > 0.99 { 50.0 } else { 0.1 };
+///         tree.update_sampled(region, s.direction, target, s.pdf);
+///     }
+///     tree.rebuild_sampling();
+/// }
+/// let d = tree.distribution(region);
+/// assert!(d.pdf(light) > 10.0 * d.pdf(Vec3::new(-0.6, 0.8, 0.0)));
+/// ```
+pub struct SpatialDirectionalTree {
+    pub(crate) settings: SpatialDirectionalTreeSettings,
+    pub(crate) low: Vec3,
+    pub(crate) extent: Vec3,
+    pub(crate) inverse_extent: Vec3,
+    pub(crate) spatial_root: u32,
+    pub(crate) spatial: Vec<SpatialNode>,
+    pub(crate) leaves: Vec<SpatialLeaf>,
+    /// Records each leaf took in the current epoch.
+    pub(crate) leaf_records: Vec<AtomicU32>,
+    pub(crate) quad: Vec<QuadNode>,
+    /// Building sums Σ target/pdf, four per quadtree node (f32 bits).
+    pub(crate) sums: Vec<AtomicU32>,
+    pub(crate) epoch: u32,
+    /// Records of the completed epochs.
+    pub(crate) accepted_before: u64,
+    pub(crate) rejected_non_finite: AtomicU32,
+    pub(crate) rejected_negative: AtomicU32,
+}
+
+/// The sampling distribution of one region: the leaf's quadtree, folded onto the
+/// normal's hemisphere when the settings say so, mixed with a uniform share.
+#[derive(Clone, Copy, Debug)]
+pub struct TreeDistribution<'a> {
+    nodes: &'a [QuadNode],
+    root: u32,
+    normal: Vec3,
+    uniform_mix: f32,
+    fold: bool,
+}
+
+impl TreeDistribution<'_> {
+    /// The quadtree's own density at `direction`, per steradian (not folded, not mixed).
+    #[inline]
+    fn tree_pdf(&self, direction: Vec3) -> f32 {
+        quadtree::square_density(self.nodes, self.root, direction_to_square(direction)) / SQUARE_TO_SOLID_ANGLE
+    }
+}
+
+impl DirectionalDistribution for TreeDistribution<'_> {
+    fn sample(&self, u: Vec2) -> DirectionSample {
+        let mix = self.uniform_mix;
+        let direction = if u.x < mix {
+            let u = Vec2::new(u.x / mix, u.y);
+            let z = if self.fold { u.x.max(MIN_SAMPLED_COS_THETA) } else { 1.0 - 2.0 * u.x };
+            let r = libm::sqrtf((1.0 - z * z).max(0.0));
+            let phi = 2.0 * PI * u.y;
+            let local = Vec3::new(r * libm::cosf(phi), r * libm::sinf(phi), z);
+            Frame::from_normal(self.normal).to_world(local)
+        } else {
+            let u = Vec2::new(((u.x - mix) / (1.0 - mix)).min(super::square::ONE_BELOW), u.y);
+            let d = square_to_direction(quadtree::sample_square(self.nodes, self.root, u));
+            let c = d.dot(self.normal);
+            if self.fold && c < MIN_SAMPLED_COS_THETA {
+                // Mirrored in the tangent plane, kept just above it.
+                let mirrored = d - self.normal * (c - c.abs().max(MIN_SAMPLED_COS_THETA));
+                mirrored.normalize()
+            } else {
+                d
+            }
+        };
+        DirectionSample { direction, pdf: self.pdf(direction) }
+    }
+
+    fn pdf(&self, direction: Vec3) -> f32 {
+        let mix = self.uniform_mix;
+        if !self.fold {
+            return mix / SQUARE_TO_SOLID_ANGLE + (1.0 - mix) * self.tree_pdf(direction);
+        }
+        let c = direction.dot(self.normal);
+        if c.is_nan() || c < 0.0 {
+            return 0.0;
+        }
+        let mirrored = direction - self.normal * (2.0 * c);
+        let tree = self.tree_pdf(direction) + self.tree_pdf(mirrored);
+        mix * (0.5 / PI) + (1.0 - mix) * tree
+    }
+}
+
+impl SpatialDirectionalTree {
+    /// A tree over the box `low`–`high` (scene units): one leaf, one uniform quadtree.
+    pub fn new(low: Vec3, high: Vec3, settings: SpatialDirectionalTreeSettings) -> Result<Self, Error> {
+        settings.validate()?;
+        if !(low.is_finite() && high.is_finite()) {
+            return Err(Error::InvalidSetting { name: "bounds", value: f64::NAN, requirement: "finite" });
+        }
+        let needed = LEAF_BYTES + NODE_BYTES;
+        if settings.budget_bytes < needed {
+            return Err(Error::BudgetTooSmall { budget_bytes: settings.budget_bytes, needed_bytes: needed });
+        }
+        // A flat box still gets a positive extent: its points all fall in one layer.
+        let size = (high - low).max(Vec3::ZERO);
+        let extent = size.max(Vec3::splat(size.max_element().max(1.0) * 1e-6));
+        let leaf = SpatialLeaf { root: 0, flux: 0.0, weight: 0.0, parent: Parent::Root, extent, depth: 0 };
+        Ok(Self {
+            settings,
+            low: low - extent * 1e-6,
+            extent: extent * (1.0 + 2e-6),
+            inverse_extent: (extent * (1.0 + 2e-6)).recip(),
+            spatial_root: LEAF,
+            spatial: Vec::new(),
+            leaves: alloc::vec![leaf],
+            leaf_records: alloc::vec![AtomicU32::new(0)],
+            quad: alloc::vec![QuadNode::UNIFORM],
+            sums: (0..4).map(|_| atomic_f32::new(0.0)).collect(),
+            epoch: 0,
+            accepted_before: 0,
+            rejected_non_finite: AtomicU32::new(0),
+            rejected_negative: AtomicU32::new(0),
+        })
+    }
+
+    /// The settings it was built with.
+    pub fn settings(&self) -> &SpatialDirectionalTreeSettings {
+        &self.settings
+    }
+
+    /// Spatial leaves.
+    pub fn leaf_count(&self) -> usize {
+        self.leaves.len()
+    }
+
+    /// Directional quadtree nodes over all leaves.
+    pub fn directional_node_count(&self) -> usize {
+        self.quad.len()
+    }
+
+    /// The deepest directional cell of `leaf`'s quadtree (1 for a root alone).
+    pub fn directional_depth(&self, leaf: u32) -> u32 {
+        fn depth(nodes: &[QuadNode], node: u32) -> u32 {
+            1 + nodes[node as usize].child.iter().filter(|&&c| c != 0).map(|&c| depth(nodes, c)).max().unwrap_or(0)
+        }
+        self.leaves.get(leaf as usize).map_or(0, |l| depth(&self.quad, l.root))
+    }
+
+    /// ∫ L dω over the sphere at `leaf` as learned (radiance × sr).
+    pub fn leaf_flux(&self, leaf: u32) -> f32 {
+        self.leaves.get(leaf as usize).map_or(0.0, |l| l.flux)
+    }
+
+    /// Q(region, ω): the radiance the leaf has learned to arrive from `direction`.
+    pub fn q(&self, region: TreeRegion, direction: Vec3) -> f32 {
+        let Some(leaf) = self.leaves.get(region.leaf as usize) else { return 0.0 };
+        let density = quadtree::square_density(&self.quad, leaf.root, direction_to_square(direction));
+        leaf.flux * density / SQUARE_TO_SOLID_ANGLE
+    }
+
+    /// Replaces `region`'s quadtree by a full tree of `depth` levels (1..=6) whose
+    /// 4^depth cells (row-major over the square, u fastest) hold the flux `values`
+    /// (non-finite or negative values count as 0); the building sums of the epoch are
+    /// cleared. For tests and tools that set a known distribution.
+    pub fn set_leaf_cells(&mut self, region: TreeRegion, depth: u32, values: &[f32]) {
+        let depth = depth.clamp(1, 6);
+        let side = 1usize << depth;
+        let Some(leaf) = self.leaves.get(region.leaf as usize).copied() else { return };
+        let value = |i: usize| values.get(i % values.len().max(1)).copied().filter(|v| v.is_finite() && *v > 0.0);
+        let cells: Vec<f64> = (0..side * side).map(|i| value(i).unwrap_or(0.0) as f64).collect();
+        // Rebuild the arena with every other leaf's tree copied and this one replaced.
+        let mut out = Vec::with_capacity(self.quad.len());
+        let mut roots = Vec::with_capacity(self.leaves.len());
+        for (index, other) in self.leaves.iter().enumerate() {
+            if index == region.leaf as usize {
+                roots.push(full_tree(&cells, side, 0, 0, side, &mut out).0);
+            } else {
+                roots.push(quadtree::copy_tree(&self.quad, other.root, &mut out));
+            }
+        }
+        for (l, root) in self.leaves.iter_mut().zip(roots) {
+            l.root = root;
+        }
+        let total: f64 = cells.iter().sum();
+        self.leaves[region.leaf as usize].flux = total.min(f32::MAX as f64) as f32 / (side * side) as f32;
+        let _ = leaf;
+        self.quad = out;
+        self.sums = (0..self.quad.len() * 4).map(|_| atomic_f32::new(0.0)).collect();
+        self.leaf_records.iter().for_each(|r| r.store(0, Ordering::Relaxed));
+    }
+
+    /// Bytes held by the trees and their building statistics.
+    pub fn memory_bytes(&self) -> usize {
+        bytes_for(self.spatial.len(), self.leaves.len(), self.quad.len())
+    }
+
+    fn alpha(&self, previous_weight: f64, records: u32) -> f64 {
+        if records == 0 {
+            return 0.0;
+        }
+        match self.settings.update_rule.learning_rate {
+            LearningRate::SimpleAverage | LearningRate::RegionVisits => {
+                records as f64 / (previous_weight + records as f64)
+            }
+            LearningRate::Exponential { alpha } => alpha as f64,
+            LearningRate::Global { exponent } => libm::pow(1.0 + self.epoch as f64, -(exponent as f64)),
+        }
+    }
+
+    /// Splits every leaf that took more than the epoch's threshold of records, heaviest
+    /// first, as long as the budget holds; halves keep splitting while their share does.
+    fn split_busy_leaves(&mut self, records: &[u32], threshold: f64) {
+        let mut queue: Vec<(u32, f64)> = records
+            .iter()
+            .enumerate()
+            .filter(|&(_, &n)| n as f64 > threshold)
+            .map(|(leaf, &n)| (leaf as u32, n as f64))
+            .collect();
+        queue.sort_by(|a, b| b.1.total_cmp(&a.1));
+        let mut next = 0;
+        while next < queue.len() {
+            let (leaf, count) = queue[next];
+            next += 1;
+            let old = self.leaves[leaf as usize];
+            if old.depth >= self.settings.max_spatial_depth {
+                continue;
+            }
+            let tree_nodes = quadtree::node_count(&self.quad, old.root);
+            let grown = bytes_for(self.spatial.len() + 1, self.leaves.len() + 1, self.quad.len() + tree_nodes);
+            if grown > self.settings.budget_bytes {
+                continue;
+            }
+            let axis = old.extent.max_position() as u32;
+            let new_leaf = self.leaves.len() as u32;
+            let node = split_leaf(&mut self.spatial, &mut self.spatial_root, old.parent, leaf, new_leaf, axis);
+            let mut extent = old.extent;
+            extent[axis as usize] *= 0.5;
+            let half = SpatialLeaf { weight: old.weight * 0.5, extent, depth: old.depth + 1, ..old };
+            self.leaves[leaf as usize] = SpatialLeaf { parent: Parent::Node { node, side: 0 }, ..half };
+            let root = quadtree::copy_tree(&self.quad.clone(), old.root, &mut self.quad);
+            self.leaves.push(SpatialLeaf { root, parent: Parent::Node { node, side: 1 }, ..half });
+            if count * 0.5 > threshold {
+                queue.push((leaf, count * 0.5));
+                queue.push((new_leaf, count * 0.5));
+            }
+        }
+    }
+}
+
+/// Bytes of a tree with these node and leaf counts.
+fn bytes_for(spatial_nodes: usize, leaves: usize, quad_nodes: usize) -> usize {
+    core::mem::size_of::<SpatialDirectionalTree>()
+        + spatial_nodes * SPATIAL_NODE_BYTES
+        + leaves * LEAF_BYTES
+        + quad_nodes * NODE_BYTES
+}
+
+/// Appends a full quadtree over the `size`×`size` block of `cells` at (`x`, `y`) (a
+/// `side`-wide grid); returns the node's index (or 0 and the block's sum for a single
+/// cell) and the block's flux.
+fn full_tree(cells: &[f64], side: usize, x: usize, y: usize, size: usize, out: &mut Vec<QuadNode>) -> (u32, f64) {
+    if size == 1 {
+        return (0, cells[y * side + x]);
+    }
+    let index = out.len();
+    out.push(QuadNode::UNIFORM);
+    let half = size / 2;
+    let mut flux = [0.0f64; 4];
+    for (cell, f) in flux.iter_mut().enumerate() {
+        let (cx, cy) = (x + (cell & 1) * half, y + (cell >> 1) * half);
+        let (child, total) = full_tree(cells, side, cx, cy, half, out);
+        out[index].child[cell] = child;
+        *f = total;
+    }
+    let sum: f64 = flux.iter().sum();
+    if sum > 0.0 {
+        out[index].probability = flux.map(|f| (f / sum) as f32);
+    }
+    (index as u32, sum)
+}
+
+impl Clone for SpatialDirectionalTree {
+    fn clone(&self) -> Self {
+        let copy = |cells: &[AtomicU32]| cells.iter().map(|c| AtomicU32::new(c.load(Ordering::Relaxed))).collect();
+        Self {
+            settings: self.settings,
+            low: self.low,
+            extent: self.extent,
+            inverse_extent: self.inverse_extent,
+            spatial_root: self.spatial_root,
+            spatial: self.spatial.clone(),
+            leaves: self.leaves.clone(),
+            leaf_records: copy(&self.leaf_records),
+            quad: self.quad.clone(),
+            sums: copy(&self.sums),
+            epoch: self.epoch,
+            accepted_before: self.accepted_before,
+            rejected_non_finite: AtomicU32::new(self.rejected_non_finite.load(Ordering::Relaxed)),
+            rejected_negative: AtomicU32::new(self.rejected_negative.load(Ordering::Relaxed)),
+        }
+    }
+}
+
+impl Guide for SpatialDirectionalTree {
+    type Region = TreeRegion;
+    type Distribution<'a> = TreeDistribution<'a>;
+
+    fn locate(&self, position: Vec3, normal: Vec3) -> Option<TreeRegion> {
+        if !normal.is_finite() {
+            return None;
+        }
+        let leaf = locate_leaf(&self.spatial, self.spatial_root, self.low, self.inverse_extent, position)?;
+        Some(TreeRegion { leaf, normal })
+    }
+
+    fn distribution(&self, region: TreeRegion) -> TreeDistribution<'_> {
+        let root = self.leaves.get(region.leaf as usize).map_or(0, |l| l.root);
+        TreeDistribution {
+            nodes: &self.quad,
+            root,
+            normal: region.normal,
+            uniform_mix: self.settings.uniform_mix,
+            fold: self.settings.fold_to_hemisphere,
+        }
+    }
+
+    /// Records `target` as if `direction` had been drawn uniformly over the sphere
+    /// (pdf 1/4π); renderers should call [`update_sampled`](Guide::update_sampled).
+    fn update(&self, region: TreeRegion, direction: Vec3, target: f32) -> UpdateOutcome {
+        self.update_sampled(region, direction, target, 1.0 / SQUARE_TO_SOLID_ANGLE)
+    }
+
+    fn update_sampled(&self, region: TreeRegion, direction: Vec3, target: f32, pdf: f32) -> UpdateOutcome {
+        let target = match classify_target(target) {
+            Ok(target) => target,
+            Err(outcome) => {
+                let counter = match outcome {
+                    UpdateOutcome::RejectedNegative => &self.rejected_negative,
+                    _ => &self.rejected_non_finite,
+                };
+                atomic_f32::increment_saturating(counter);
+                return outcome;
+            }
+        };
+        let unit = direction.is_finite() && (direction.length_squared() - 1.0).abs() < 1e-3;
+        let Some(leaf) = self.leaves.get(region.leaf as usize) else { return UpdateOutcome::OutsideDomain };
+        if !(unit && pdf.is_finite() && pdf > 0.0) {
+            return UpdateOutcome::OutsideDomain;
+        }
+        let weight = (target / pdf).min(f32::MAX);
+        let cell = quadtree::leaf_cell(&self.quad, leaf.root, direction_to_square(direction));
+        quadtree::add_record(&self.sums, cell, weight);
+        atomic_f32::increment_saturating(&self.leaf_records[region.leaf as usize]);
+        UpdateOutcome::Accepted
+    }
+
+    fn estimate_integral<S: ScatteringFunction + ?Sized>(
+        &self,
+        region: TreeRegion,
+        wo: Vec3,
+        bsdf: &S,
+        u: Vec2,
+    ) -> f32 {
+        // One direction from the BSDF (cosine-distributed for a Lambertian one), weighted
+        // by Q there: unbiased for the tree's piecewise-constant Q at one lookup.
+        let estimate = if let Some(albedo) = bsdf.lambertian_albedo() {
+            let r = libm::sqrtf(u.x);
+            let phi = 2.0 * PI * u.y;
+            let z = libm::sqrtf((1.0 - u.x).max(0.0));
+            let wi = Frame::from_normal(region.normal).to_world(Vec3::new(r * libm::cosf(phi), r * libm::sinf(phi), z));
+            self.q(region, wi) * albedo
+        } else if let Some(s) = bsdf.can_sample().then(|| bsdf.sample_cos(wo, u)).flatten() {
+            self.q(region, s.wi) * s.weight
+        } else {
+            let z = u.x.max(MIN_SAMPLED_COS_THETA);
+            let r = libm::sqrtf((1.0 - z * z).max(0.0));
+            let phi = 2.0 * PI * u.y;
+            let wi = Frame::from_normal(region.normal).to_world(Vec3::new(r * libm::cosf(phi), r * libm::sinf(phi), z));
+            self.q(region, wi) * bsdf.eval_cos(wi, wo) * 2.0 * PI
+        };
+        if estimate.is_finite() {
+            estimate.max(0.0)
+        } else {
+            0.0
+        }
+    }
+
+    fn rebuild_sampling(&mut self) {
+        let records: Vec<u32> = self.leaf_records.iter().map(|r| r.load(Ordering::Relaxed)).collect();
+        let epoch_records: u64 = records.iter().map(|&n| n as u64).sum();
+        self.epoch = self.epoch.saturating_add(1);
+        if epoch_records == 0 {
+            return;
+        }
+        // Directional refit of every leaf into a fresh arena, capped so that every leaf
+        // still to come keeps room for its root.
+        let fixed = bytes_for(self.spatial.len(), self.leaves.len(), 0);
+        let node_budget = self.settings.budget_bytes.saturating_sub(fixed) / NODE_BYTES;
+        let mut out = Vec::with_capacity(self.quad.len());
+        let mut scratch = Vec::new();
+        let leaf_count = self.leaves.len();
+        for (index, &n) in records.iter().enumerate() {
+            let leaf = self.leaves[index];
+            let blend = EpochBlend {
+                previous_flux: leaf.flux as f64,
+                sum_scale: if n > 0 { 1.0 / n as f64 } else { 0.0 },
+                alpha: self.alpha(leaf.weight, n),
+            };
+            let rule = RefitRule {
+                flux_fraction: self.settings.flux_fraction as f64,
+                max_depth: self.settings.max_directional_depth,
+                node_cap: node_budget.saturating_sub(leaf_count - index - 1).max(out.len() + 1),
+            };
+            let (root, flux) = quadtree::refit(&self.quad, &self.sums, leaf.root, blend, rule, &mut scratch, &mut out);
+            let leaf = &mut self.leaves[index];
+            leaf.root = root;
+            leaf.flux = flux.min(f32::MAX as f64) as f32;
+            leaf.weight += n as f64;
+        }
+        self.quad = out;
+        self.accepted_before += epoch_records;
+        self.split_busy_leaves(&records, self.settings.split_threshold(epoch_records));
+        self.sums = (0..self.quad.len() * 4).map(|_| atomic_f32::new(0.0)).collect();
+        self.leaf_records = (0..self.leaves.len()).map(|_| AtomicU32::new(0)).collect();
+    }
+
+    fn stats(&self) -> GuideStats {
+        let pending: u64 = self.leaf_records.iter().map(|r| r.load(Ordering::Relaxed) as u64).sum();
+        let cells = 3 * self.quad.len() + self.leaves.len();
+        GuideStats {
+            regions: self.leaves.len(),
+            entries_per_region: cells / self.leaves.len().max(1),
+            memory_bytes: self.memory_bytes(),
+            accepted_updates: self.accepted_before + pending,
+            visited_entries: self.sums.iter().filter(|s| atomic_f32::load(s) > 0.0).count(),
+            rejected_non_finite: self.rejected_non_finite.load(Ordering::Relaxed) as u64,
+            rejected_negative: self.rejected_negative.load(Ordering::Relaxed) as u64,
+            epochs: self.epoch,
+        }
+    }
+
+    fn validate(&self) -> Result<(), Error> {
+        super::serialize::validate(self)
+    }
+
+    fn to_bytes(&self) -> Vec<u8> {
+        super::serialize::to_bytes(self)
+    }
+
+    fn from_bytes(bytes: &[u8]) -> Result<Self, Error> {
+        super::serialize::from_bytes(bytes)
+    }
+
+    fn update_rule(&self) -> UpdateRule {
+        self.settings.update_rule
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::low_discrepancy::Pcg32;
+
+    fn tree(settings: SpatialDirectionalTreeSettings) -> SpatialDirectionalTree {
+        SpatialDirectionalTree::new(Vec3::splat(-1.0), Vec3::ONE, settings).expect("a tree over the box")
+    }
+
+    /// Teaches a radiance field: 0.1 everywhere and `peak` within `width` (cos) of
+    /// `light`, through directions drawn by `draw` (returning direction and pdf).
+    fn teach(
+        tree: &SpatialDirectionalTree,
+        region: TreeRegion,
+        light: Vec3,
+        samples: u32,
+        rng: &mut Pcg32,
+        mut draw: impl FnMut(&mut Pcg32) -> (Vec3, f32),
+    ) {
+        for _ in 0..samples {
+            let (d, pdf) = draw(rng);
+            let target = if d.dot(light) > 0.999 { 100.0 } else { 0.1 };
+            tree.update_sampled(region, d, target, pdf);
+        }
+    }
+
+    #[test]
+    fn learned_flux_does_not_depend_on_the_density_that_drew_the_directions() {
+        // Bug 2 of the guiding issue: the same radiance field learned through mixtures
+        // that sample the guide with probability 0.1 and 0.9 (the rest cosine-weighted)
+        // must give the same Q within noise.
+        let light = Vec3::new(0.5, 0.0, 0.866).normalize();
+        let mut learned = Vec::new();
+        for p_guide in [0.1f32, 0.9] {
+            let mut tree = tree(SpatialDirectionalTreeSettings::default());
+            let region = tree.locate(Vec3::ZERO, Vec3::Z).unwrap();
+            let mut rng = Pcg32::new(11, 3);
+            for _ in 0..6 {
+                let distribution = tree.distribution(region);
+                let frame = Frame::from_normal(Vec3::Z);
+                let snapshot = tree.clone();
+                let d = snapshot.distribution(region);
+                teach(&tree, region, light, 200_000, &mut rng, |rng| {
+                    let u = rng.next_vec2();
+                    let wi = if rng.next_f32() < p_guide {
+                        d.sample(u).direction
+                    } else {
+                        let r = libm::sqrtf(u.x);
+                        let phi = 2.0 * PI * u.y;
+                        frame.to_world(Vec3::new(r * libm::cosf(phi), r * libm::sinf(phi), libm::sqrtf(1.0 - u.x)))
+                    };
+                    let cosine = wi.z.max(0.0) / PI;
+                    (wi, p_guide * d.pdf(wi) + (1.0 - p_guide) * cosine)
+                });
+                let _ = distribution;
+                tree.rebuild_sampling();
+            }
+            // The exact flux: 0.1 over the hemisphere plus 99.9 over the cap.
+            let cap = 2.0 * PI * (1.0 - 0.999);
+            let exact = 0.1 * 2.0 * PI + 99.9 * cap;
+            let flux = tree.leaf_flux(region.leaf);
+            assert!((flux / exact - 1.0).abs() < 0.05, "p_guide {p_guide}: flux {flux}, exact {exact}");
+            learned.push((tree.q(region, light), tree.q(region, Vec3::new(-0.6, 0.0, 0.8))));
+        }
+        let (a, b) = (learned[0], learned[1]);
+        assert!((a.0 / b.0 - 1.0).abs() < 0.1, "Q at the light: {} against {}", a.0, b.0);
+        assert!((a.1 / b.1 - 1.0).abs() < 0.1, "Q off the light: {} against {}", a.1, b.1);
+    }
+
+    #[test]
+    fn a_narrow_source_is_resolved_far_below_one_degree() {
+        let mut tree = tree(SpatialDirectionalTreeSettings::default());
+        let region = tree.locate(Vec3::ZERO, Vec3::Z).unwrap();
+        // A source 0.5° across: cos > 0.99996.
+        let light = Vec3::new(0.3, 0.2, 0.9).normalize();
+        let mut rng = Pcg32::new(5, 5);
+        for _ in 0..10 {
+            let snapshot = tree.clone();
+            let d = snapshot.distribution(region);
+            for _ in 0..100_000 {
+                let s = d.sample(rng.next_vec2());
+                let target = if s.direction.dot(light) > 0.99996 { 1e4 } else { 0.1 };
+                tree.update_sampled(region, s.direction, target, s.pdf);
+            }
+            tree.rebuild_sampling();
+        }
+        let depth = tree.directional_depth(region.leaf);
+        assert!(depth >= 9, "depth {depth}");
+        // The guide's density at the source against the cosine density there.
+        let pdf = tree.distribution(region).pdf(light);
+        assert!(pdf > 1000.0 * light.z / PI, "pdf at the source {pdf}");
+    }
+
+    #[test]
+    fn busy_leaves_split_and_regions_follow_space() {
+        let mut tree = tree(SpatialDirectionalTreeSettings { min_split_records: 100, ..Default::default() });
+        let mut rng = Pcg32::new(1, 9);
+        for _ in 0..4 {
+            for _ in 0..50_000 {
+                let p = Vec3::new(rng.next_f32() * 0.5 - 1.0, -1.0, rng.next_f32() * 0.5 - 1.0);
+                let region = tree.locate(p, Vec3::Y).unwrap();
+                tree.update(region, Vec3::Y, 1.0);
+            }
+            tree.rebuild_sampling();
+            assert!(tree.validate().is_ok());
+        }
+        assert!(tree.leaf_count() > 8, "{} leaves", tree.leaf_count());
+        let a = tree.locate(Vec3::new(-0.9, -1.0, -0.9), Vec3::Y).unwrap();
+        let b = tree.locate(Vec3::new(0.9, 1.0, 0.9), Vec3::Y).unwrap();
+        assert_ne!(a.leaf, b.leaf);
+    }
+
+    #[test]
+    fn bad_records_are_counted_or_ignored() {
+        let tree = tree(SpatialDirectionalTreeSettings::default());
+        let region = tree.locate(Vec3::ZERO, Vec3::Z).unwrap();
+        assert_eq!(tree.update_sampled(region, Vec3::Z, f32::NAN, 1.0), UpdateOutcome::RejectedNonFinite);
+        assert_eq!(tree.update_sampled(region, Vec3::Z, -1.0, 1.0), UpdateOutcome::RejectedNegative);
+        assert_eq!(tree.update_sampled(region, Vec3::Z, 1.0, 0.0), UpdateOutcome::OutsideDomain);
+        assert_eq!(tree.update_sampled(region, Vec3::new(2.0, 0.0, 0.0), 1.0, 1.0), UpdateOutcome::OutsideDomain);
+        let stray = TreeRegion { leaf: 99, normal: Vec3::Z };
+        assert_eq!(tree.update_sampled(stray, Vec3::Z, 1.0, 1.0), UpdateOutcome::OutsideDomain);
+        let stats = tree.stats();
+        assert_eq!((stats.rejected_non_finite, stats.rejected_negative, stats.accepted_updates), (1, 1, 0));
+        assert!(tree.locate(Vec3::splat(f32::NAN), Vec3::Z).is_none());
+    }
+
+    #[test]
+    fn settings_out_of_range_are_refused() {
+        let bad = [
+            SpatialDirectionalTreeSettings { flux_fraction: 0.0, ..Default::default() },
+            SpatialDirectionalTreeSettings { max_directional_depth: 21, ..Default::default() },
+            SpatialDirectionalTreeSettings { uniform_mix: 1.5, ..Default::default() },
+            SpatialDirectionalTreeSettings { spatial_threshold: f32::NAN, ..Default::default() },
+        ];
+        for settings in bad {
+            assert!(SpatialDirectionalTree::new(Vec3::ZERO, Vec3::ONE, settings).is_err(), "{settings:?}");
+        }
+        let tiny = SpatialDirectionalTreeSettings { budget_bytes: 16, ..Default::default() };
+        assert!(matches!(SpatialDirectionalTree::new(Vec3::ZERO, Vec3::ONE, tiny), Err(Error::BudgetTooSmall { .. })));
+    }
+}
+
+#[cfg(test)]
+mod sampling_tests {
+    use super::*;
+    use crate::low_discrepancy::Pcg32;
+
+    /// E over the sampler of 1/pdf is the solid angle of the support (2π for the
+    /// folded distribution) exactly when the pdf matches the sampler everywhere: a check
+    /// that reaches the deepest, spikiest cells, where a chi-square's bins cannot.
+    #[test]
+    fn inverse_pdf_averages_to_the_hemisphere_on_spiky_trees() {
+        let settings = SpatialDirectionalTreeSettings { uniform_mix: 0.0, ..Default::default() };
+        let mut tree = SpatialDirectionalTree::new(Vec3::splat(-1.0), Vec3::ONE, settings).unwrap();
+        let normal = Vec3::new(0.3, -0.5, 0.8).normalize();
+        let region = tree.locate(Vec3::ZERO, normal).unwrap();
+        let mut rng = Pcg32::new(3, 1);
+        for _ in 0..8 {
+            let snapshot = tree.clone();
+            let d = snapshot.distribution(region);
+            for _ in 0..50_000 {
+                let s = d.sample(rng.next_vec2());
+                // Heavy-tailed targets, as Russian roulette makes them.
+                let u = rng.next_f32();
+                let target = if u < 0.01 { 1e3 } else { 0.1 };
+                tree.update_sampled(region, s.direction, target, s.pdf);
+            }
+            tree.rebuild_sampling();
+        }
+        let d = tree.distribution(region);
+        let n = 2_000_000;
+        let mut sum = 0.0f64;
+        for _ in 0..n {
+            let s = d.sample(rng.next_vec2());
+            sum += 1.0 / s.pdf as f64;
+        }
+        let mean = sum / n as f64;
+        assert!((mean / (2.0 * core::f64::consts::PI) - 1.0).abs() < 0.01, "E[1/pdf] = {mean}");
+    }
+}

@@ -1,0 +1,344 @@
+//! Directional quadtrees over the equal-area square ([`super::square`]), kept in one
+//! arena per tree: sampling and the pdf by one descent each, records added at the cell
+//! a direction falls in, and the refit between epochs that splits cells holding much of
+//! the flux and merges those holding little (Müller et al. 2017, §3).
+
+use alloc::vec::Vec;
+use core::sync::atomic::AtomicU32;
+
+use glam::Vec2;
+
+use super::square::ONE_BELOW;
+use crate::atomic_f32;
+
+/// One node of a directional quadtree: four cells, in the order (u low, v low),
+/// (u high, v low), (u low, v high), (u high, v high).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct QuadNode {
+    /// The probability of each cell within this node; they sum to one.
+    pub(crate) probability: [f32; 4],
+    /// The arena index of each cell's node, or 0 where the cell is a leaf (index 0 is
+    /// always a root, never a child).
+    pub(crate) child: [u32; 4],
+}
+
+impl QuadNode {
+    /// A node of four leaf cells of equal probability.
+    pub(crate) const UNIFORM: QuadNode = QuadNode { probability: [0.25; 4], child: [0; 4] };
+}
+
+/// Bytes a node costs: the node and its four building sums.
+pub(crate) const NODE_BYTES: usize = core::mem::size_of::<QuadNode>() + 4 * core::mem::size_of::<AtomicU32>();
+
+/// The cell of `p` within a node, and `p` in that cell's own unit square.
+#[inline]
+fn descend(p: Vec2) -> (usize, Vec2) {
+    let (ix, iy) = (p.x >= 0.5, p.y >= 0.5);
+    let cell = ix as usize + 2 * iy as usize;
+    // Doubling and subtracting one are exact in floating point.
+    let q = Vec2::new(if ix { p.x * 2.0 - 1.0 } else { p.x * 2.0 }, if iy { p.y * 2.0 - 1.0 } else { p.y * 2.0 });
+    (cell, q)
+}
+
+/// Picks between two masses `a` and `b` with `u` ∈ [0, 1) and rescales `u` to [0, 1)
+/// within the one picked: `false` for `a`.
+#[inline]
+fn choose(u: &mut f32, a: f32, b: f32) -> bool {
+    let total = a + b;
+    if total.is_nan() || total <= 0.0 {
+        // Both empty (only in damaged data): split evenly.
+        let high = *u >= 0.5;
+        *u = if high { *u * 2.0 - 1.0 } else { *u * 2.0 };
+        return high;
+    }
+    let scaled = *u * total;
+    if scaled < a {
+        *u = (scaled / a).min(ONE_BELOW);
+        false
+    } else {
+        *u = ((scaled - a) / b).clamp(0.0, ONE_BELOW);
+        true
+    }
+}
+
+/// A point of the square drawn with the tree's density from `u` ∈ [0, 1)²: one descent,
+/// the uniform numbers rescaled at each level (no further random numbers).
+pub(crate) fn sample_square(nodes: &[QuadNode], root: u32, mut u: Vec2) -> Vec2 {
+    let (mut origin, mut size, mut node) = (Vec2::ZERO, 1.0f32, root as usize);
+    loop {
+        let [p0, p1, p2, p3] = nodes[node].probability;
+        let ix = choose(&mut u.x, p0 + p2, p1 + p3);
+        let iy = if ix { choose(&mut u.y, p1, p3) } else { choose(&mut u.y, p0, p2) };
+        let cell = ix as usize + 2 * iy as usize;
+        size *= 0.5;
+        origin += Vec2::new(ix as u32 as f32, iy as u32 as f32) * size;
+        match nodes[node].child[cell] {
+            0 => return (origin + u * size).min(Vec2::splat(ONE_BELOW)),
+            child => node = child as usize,
+        }
+    }
+}
+
+/// The tree's density at square point `p` ∈ [0, 1)², relative to the uniform density
+/// (so it integrates to one over the square).
+#[inline]
+pub(crate) fn square_density(nodes: &[QuadNode], root: u32, mut p: Vec2) -> f32 {
+    let (mut density, mut node) = (1.0f32, root as usize);
+    loop {
+        let (cell, q) = descend(p);
+        density *= 4.0 * nodes[node].probability[cell];
+        match nodes[node].child[cell] {
+            0 => return density,
+            child => (node, p) = (child as usize, q),
+        }
+    }
+}
+
+/// The index (node · 4 + cell) of the leaf cell holding square point `p`.
+#[inline]
+pub(crate) fn leaf_cell(nodes: &[QuadNode], root: u32, mut p: Vec2) -> usize {
+    let mut node = root as usize;
+    loop {
+        let (cell, q) = descend(p);
+        match nodes[node].child[cell] {
+            0 => return node * 4 + cell,
+            child => (node, p) = (child as usize, q),
+        }
+    }
+}
+
+/// Adds `weight` (a record's target / pdf) to the building sum of a leaf cell.
+#[inline]
+pub(crate) fn add_record(sums: &[AtomicU32], cell: usize, weight: f32) {
+    atomic_f32::update(&sums[cell], |s| (s + weight).min(f32::MAX));
+}
+
+/// Appends a copy of the tree at `root` of `nodes` to `out`; returns the copy's root.
+pub(crate) fn copy_tree(nodes: &[QuadNode], root: u32, out: &mut Vec<QuadNode>) -> u32 {
+    let index = out.len();
+    out.push(nodes[root as usize]);
+    for cell in 0..4 {
+        let child = nodes[root as usize].child[cell];
+        if child != 0 {
+            let copied = copy_tree(nodes, child, out);
+            out[index].child[cell] = copied;
+        }
+    }
+    index as u32
+}
+
+/// Nodes in the tree at `root`.
+pub(crate) fn node_count(nodes: &[QuadNode], root: u32) -> usize {
+    1 + nodes[root as usize].child.iter().filter(|&&c| c != 0).map(|&c| node_count(nodes, c)).sum::<usize>()
+}
+
+/// How a refit splits and merges.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct RefitRule {
+    /// ρ: cells above this share of the leaf's flux split, inner cells below it merge.
+    pub(crate) flux_fraction: f64,
+    /// Deepest cell level.
+    pub(crate) max_depth: u32,
+    /// The arena may not grow past this many nodes (the byte budget).
+    pub(crate) node_cap: usize,
+}
+
+/// What one leaf's tree learned in an epoch, and how much it counts.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct EpochBlend {
+    /// The flux the tree stood for before the epoch (∫ L dω over the sphere).
+    pub(crate) previous_flux: f64,
+    /// Converts building sums (Σ target/pdf) into flux: one over the epoch's records.
+    pub(crate) sum_scale: f64,
+    /// The weight of the epoch's estimate against the previous one, in [0, 1].
+    pub(crate) alpha: f64,
+}
+
+/// Rebuilds one leaf's tree from its sampling probabilities and building sums, blended
+/// by `blend`, into `out`; returns the new root and the new flux. `scratch` is reused
+/// across leaves.
+pub(crate) fn refit(
+    nodes: &[QuadNode],
+    sums: &[AtomicU32],
+    root: u32,
+    blend: EpochBlend,
+    rule: RefitRule,
+    scratch: &mut Vec<[f64; 4]>,
+    out: &mut Vec<QuadNode>,
+) -> (u32, f64) {
+    scratch.resize(nodes.len(), [0.0; 4]);
+    let total = blend_cells(nodes, sums, root, 1.0, &blend, scratch);
+    let mut builder = Builder { old: nodes, blended: scratch, out, total, rule };
+    let new_root = builder.build(Some(root), scratch[root as usize], 0);
+    (new_root, total)
+}
+
+/// Fills `blended[node]` with each cell's blended flux, below `node` first; `mass` is
+/// the node's share of the previous distribution. Returns the node's total.
+fn blend_cells(
+    nodes: &[QuadNode],
+    sums: &[AtomicU32],
+    node: u32,
+    mass: f64,
+    blend: &EpochBlend,
+    blended: &mut [[f64; 4]],
+) -> f64 {
+    let mut cells = [0.0f64; 4];
+    for (cell, value) in cells.iter_mut().enumerate() {
+        let share = mass * nodes[node as usize].probability[cell] as f64;
+        *value = match nodes[node as usize].child[cell] {
+            0 => {
+                let learned = atomic_f32::load(&sums[node as usize * 4 + cell]) as f64 * blend.sum_scale;
+                let previous = blend.previous_flux * share;
+                let mixed = (1.0 - blend.alpha) * previous + blend.alpha * learned;
+                if mixed.is_finite() && mixed > 0.0 {
+                    mixed
+                } else {
+                    0.0
+                }
+            }
+            child => blend_cells(nodes, sums, child, share, blend, blended),
+        };
+    }
+    blended[node as usize] = cells;
+    cells.iter().sum()
+}
+
+struct Builder<'a> {
+    old: &'a [QuadNode],
+    blended: &'a [[f64; 4]],
+    out: &'a mut Vec<QuadNode>,
+    total: f64,
+    rule: RefitRule,
+}
+
+impl Builder<'_> {
+    /// Appends the node for `flux` (the four cells' flux) at `depth`, built from `old`
+    /// where the previous tree had a node there; returns its index.
+    fn build(&mut self, old: Option<u32>, flux: [f64; 4], depth: u32) -> u32 {
+        let index = self.out.len();
+        let sum: f64 = flux.iter().sum();
+        let probability = if sum > 0.0 { flux.map(|f| (f / sum) as f32) } else { [0.25; 4] };
+        self.out.push(QuadNode { probability, child: [0; 4] });
+        for (cell, &cell_flux) in flux.iter().enumerate() {
+            let splits = self.total > 0.0
+                && cell_flux > self.rule.flux_fraction * self.total
+                && depth + 2 <= self.rule.max_depth
+                && self.out.len() < self.rule.node_cap;
+            if !splits {
+                continue;
+            }
+            let previous = old.map_or(0, |node| self.old[node as usize].child[cell]);
+            let (child_old, child_flux) = match previous {
+                0 => (None, [cell_flux * 0.25; 4]),
+                node => (Some(node), self.blended[node as usize]),
+            };
+            let child = self.build(child_old, child_flux, depth + 1);
+            self.out[index].child[cell] = child;
+        }
+        index as u32
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::low_discrepancy::Pcg32;
+
+    fn sums(count: usize) -> Vec<AtomicU32> {
+        (0..count * 4).map(|_| atomic_f32::new(0.0)).collect()
+    }
+
+    /// A tree learned from a point-like source at square point `light`.
+    fn learned(light: Vec2) -> (Vec<QuadNode>, u32) {
+        let mut nodes = alloc::vec![QuadNode::UNIFORM];
+        let mut root = 0;
+        let rule = RefitRule { flux_fraction: 0.01, max_depth: 20, node_cap: 100_000 };
+        let mut rng = Pcg32::new(1, 2);
+        for _ in 0..12 {
+            let building = sums(nodes.len());
+            for _ in 0..20_000 {
+                // Drawn from the tree itself, half the time, as a guided renderer would.
+                let (p, pdf) = if rng.next_f32() < 0.5 {
+                    let p = sample_square(&nodes, root, rng.next_vec2());
+                    (p, 0.5 * square_density(&nodes, root, p) + 0.5)
+                } else {
+                    let p = rng.next_vec2();
+                    (p, 0.5 * square_density(&nodes, root, p) + 0.5)
+                };
+                let target = if (p - light).abs().max_element() < 1e-3 { 1e4 } else { 0.01 };
+                add_record(&building, leaf_cell(&nodes, root, p), target / pdf);
+            }
+            let blend = EpochBlend { previous_flux: 0.0, sum_scale: 1.0 / 20_000.0, alpha: 1.0 };
+            let (mut out, mut scratch) = (Vec::new(), Vec::new());
+            root = refit(&nodes, &building, root, blend, rule, &mut scratch, &mut out).0;
+            nodes = out;
+        }
+        (nodes, root)
+    }
+
+    #[test]
+    fn density_integrates_to_one_and_sampling_follows_it() {
+        let light = Vec2::new(0.3217, 0.7431);
+        let (nodes, root) = learned(light);
+        assert!(nodes.len() > 20, "the tree refined: {} nodes", nodes.len());
+        // Σ density × area over every leaf cell, the density read by descending to the
+        // cell's midpoint: checks that the descent agrees with the structure.
+        fn integrate(nodes: &[QuadNode], root: u32, node: u32, origin: Vec2, size: f32) -> f64 {
+            (0..4)
+                .map(|cell| {
+                    let half = size * 0.5;
+                    let corner = origin + Vec2::new((cell & 1) as f32, (cell >> 1) as f32) * half;
+                    match nodes[node as usize].child[cell] {
+                        0 => {
+                            square_density(nodes, root, corner + Vec2::splat(half * 0.5)) as f64 * (half * half) as f64
+                        }
+                        child => integrate(nodes, root, child, corner, half),
+                    }
+                })
+                .sum()
+        }
+        let total = integrate(&nodes, root, root, Vec2::ZERO, 1.0);
+        assert!((total - 1.0).abs() < 1e-3, "∫ density = {total}");
+        // Samples near the light: the share they take matches the density's mass there.
+        let mut rng = Pcg32::new(7, 7);
+        let near = (0..100_000)
+            .filter(|_| (sample_square(&nodes, root, rng.next_vec2()) - light).abs().max_element() < 4e-3)
+            .count();
+        assert!(near > 30_000, "{near} of 100000 samples near the light");
+    }
+
+    #[test]
+    fn sampled_points_fall_in_the_cell_whose_density_they_were_drawn_with() {
+        let (nodes, root) = learned(Vec2::new(0.61, 0.12));
+        let mut rng = Pcg32::new(9, 1);
+        for _ in 0..100_000 {
+            let p = sample_square(&nodes, root, rng.next_vec2());
+            assert!(p.x >= 0.0 && p.x < 1.0 && p.y >= 0.0 && p.y < 1.0);
+            assert!(square_density(&nodes, root, p) > 0.0);
+        }
+    }
+
+    #[test]
+    fn an_empty_epoch_keeps_the_tree_and_nothing_learned_stays_uniform() {
+        let nodes = alloc::vec![QuadNode::UNIFORM];
+        let rule = RefitRule { flux_fraction: 0.01, max_depth: 20, node_cap: 1000 };
+        let blend = EpochBlend { previous_flux: 0.0, sum_scale: 0.0, alpha: 1.0 };
+        let (mut out, mut scratch) = (Vec::new(), Vec::new());
+        let (root, flux) = refit(&nodes, &sums(1), 0, blend, rule, &mut scratch, &mut out);
+        assert_eq!((out.len(), flux), (1, 0.0));
+        assert_eq!(out[root as usize], QuadNode::UNIFORM);
+    }
+
+    #[test]
+    fn the_node_cap_bounds_the_arena() {
+        let nodes = alloc::vec![QuadNode::UNIFORM];
+        let building = sums(1);
+        add_record(&building, 0, 1.0);
+        let rule = RefitRule { flux_fraction: 1e-6, max_depth: 20, node_cap: 7 };
+        let blend = EpochBlend { previous_flux: 0.0, sum_scale: 1.0, alpha: 1.0 };
+        let (mut out, mut scratch) = (Vec::new(), Vec::new());
+        refit(&nodes, &building, 0, blend, rule, &mut scratch, &mut out);
+        assert!(out.len() <= 7, "{} nodes", out.len());
+    }
+}

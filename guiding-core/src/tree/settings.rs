@@ -1,0 +1,88 @@
+//! Configuration of a [`SpatialDirectionalTree`](super::SpatialDirectionalTree).
+
+use crate::error::{require, Error};
+use crate::update_rule::{IntegralEstimator, LearningRate, UpdateRule};
+
+/// Deepest spatial level (a leaf of depth 24 spans 2⁻⁸ of the scene along each axis).
+pub const MAX_SPATIAL_DEPTH: u32 = 24;
+/// Deepest directional level: a cell of depth 20 covers 4π·4⁻²⁰ sr (about 0.01°).
+pub const MAX_DIRECTIONAL_DEPTH: u32 = 20;
+
+/// Everything that shapes a spatial × directional tree and how it learns.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SpatialDirectionalTreeSettings {
+    /// Memory budget for every node of both trees and the building statistics, bytes.
+    /// Refinement stops (spatial splits first, then directional depth) where it would
+    /// pass it.
+    pub budget_bytes: usize,
+    /// c of the spatial split rule: a leaf splits when it took more than
+    /// `max(min_split_records, c·√R)` records in the epoch, R the records of the whole
+    /// tree in that epoch (Müller et al. 2017 use c·√(2^k) with 2^k the epoch's samples
+    /// per pixel; √R grows the same way and does not depend on the image size).
+    pub spatial_threshold: f32,
+    /// The least records that let a leaf split, whatever the epoch's size.
+    pub min_split_records: u32,
+    /// A directional cell holding more than this share of its leaf's flux is split in
+    /// four; an inner cell holding less is merged (Müller et al.'s ρ, 0.01).
+    pub flux_fraction: f32,
+    /// Deepest directional level, in 1..=[`MAX_DIRECTIONAL_DEPTH`].
+    pub max_directional_depth: u32,
+    /// Deepest spatial level, in 0..=[`MAX_SPATIAL_DEPTH`].
+    pub max_spatial_depth: u32,
+    /// Share of the sampling density spread uniformly over the normal's hemisphere, in
+    /// [0, 1]: every direction above the surface keeps a pdf of at least
+    /// `uniform_mix / 2π`.
+    pub uniform_mix: f32,
+    /// Sample only the normal's hemisphere: a direction drawn below the surface is
+    /// mirrored in the tangent plane, with the exact pdf p(ω) + p(mirror ω). The tree is
+    /// spherical because a leaf holds both sides of thin walls.
+    pub fold_to_hemisphere: bool,
+    /// How the epochs' flux estimates combine ([`LearningRate`]: simple averaging weighs
+    /// every record alike, a constant α blends each epoch in, `Global` decays by epoch)
+    /// and how the target's integral is estimated ([`IntegralEstimator::PathContinuation`]
+    /// by default: the radiance the path itself brought back, no lookup).
+    pub update_rule: UpdateRule,
+}
+
+impl Default for SpatialDirectionalTreeSettings {
+    fn default() -> Self {
+        Self {
+            budget_bytes: 16 << 20,
+            spatial_threshold: 8.0,
+            min_split_records: 512,
+            flux_fraction: 0.01,
+            max_directional_depth: MAX_DIRECTIONAL_DEPTH,
+            max_spatial_depth: MAX_SPATIAL_DEPTH,
+            uniform_mix: 0.02,
+            fold_to_hemisphere: true,
+            update_rule: UpdateRule {
+                learning_rate: LearningRate::SimpleAverage,
+                integral: IntegralEstimator::PathContinuation,
+            },
+        }
+    }
+}
+
+impl SpatialDirectionalTreeSettings {
+    /// Checks every setting's range.
+    pub fn validate(&self) -> Result<(), Error> {
+        self.update_rule.validate()?;
+        require(self.budget_bytes > 0, "budget_bytes", self.budget_bytes as f64, "positive")?;
+        let c = self.spatial_threshold;
+        require(c.is_finite() && c > 0.0, "spatial_threshold", c as f64, "finite and > 0")?;
+        let rho = self.flux_fraction;
+        require(rho > 0.0 && rho < 1.0, "flux_fraction", rho as f64, "in (0, 1)")?;
+        let depth = self.max_directional_depth;
+        require((1..=MAX_DIRECTIONAL_DEPTH).contains(&depth), "max_directional_depth", depth as f64, "in 1..=20")?;
+        let depth = self.max_spatial_depth;
+        require(depth <= MAX_SPATIAL_DEPTH, "max_spatial_depth", depth as f64, "in 0..=24")?;
+        let mix = self.uniform_mix;
+        require((0.0..=1.0).contains(&mix), "uniform_mix", mix as f64, "in [0, 1]")?;
+        Ok(())
+    }
+
+    /// The records above which a leaf splits in an epoch of `epoch_records` in all.
+    pub fn split_threshold(&self, epoch_records: u64) -> f64 {
+        (self.spatial_threshold as f64 * libm::sqrt(epoch_records as f64)).max(self.min_split_records as f64)
+    }
+}

@@ -1,0 +1,107 @@
+//! The spatial half of the tree: a binary tree over the scene's box whose nodes halve
+//! their box along one axis, found by one descent from the root (no neighbour search).
+
+use alloc::vec::Vec;
+
+use glam::Vec3;
+
+use super::square::ONE_BELOW;
+
+/// Marks a child reference as a leaf index rather than a node index.
+pub(crate) const LEAF: u32 = 1 << 31;
+
+/// An inner node: its two halves along `axis` (low first), each a node index or
+/// `LEAF | leaf index`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct SpatialNode {
+    /// The halves.
+    pub(crate) child: [u32; 2],
+    /// 0, 1 or 2 for x, y, z.
+    pub(crate) axis: u32,
+}
+
+/// Bytes one inner node costs.
+pub(crate) const SPATIAL_NODE_BYTES: usize = core::mem::size_of::<SpatialNode>();
+
+/// The leaf holding `position` (scene units), given the box's low corner and the
+/// reciprocal of its extent; `None` for a non-finite position. Points outside the box
+/// belong to the nearest leaf.
+#[inline]
+pub(crate) fn locate_leaf(
+    nodes: &[SpatialNode],
+    root: u32,
+    low: Vec3,
+    inverse_extent: Vec3,
+    position: Vec3,
+) -> Option<u32> {
+    let p = (position - low) * inverse_extent;
+    if !p.is_finite() {
+        return None;
+    }
+    let mut p = p.clamp(Vec3::ZERO, Vec3::splat(ONE_BELOW)).to_array();
+    let mut reference = root;
+    while reference & LEAF == 0 {
+        let node = &nodes[reference as usize];
+        let axis = node.axis as usize;
+        // Doubling and subtracting one are exact: the point stays in its half's unit box.
+        let x = p[axis] * 2.0;
+        let high = x >= 1.0;
+        p[axis] = if high { x - 1.0 } else { x };
+        reference = node.child[high as usize];
+    }
+    Some(reference & !LEAF)
+}
+
+/// Where a leaf hangs: the node and side whose child reference names it, or the root.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Parent {
+    /// The tree is this one leaf.
+    Root,
+    /// `nodes[node].child[side]`.
+    Node {
+        /// Node index.
+        node: u32,
+        /// 0 for the low half, 1 for the high half.
+        side: u32,
+    },
+}
+
+/// Splits the leaf `leaf` hanging at `parent` along `axis`: a new node takes its place,
+/// with `leaf` as the low half and `new_leaf` as the high half. Returns the new node's
+/// index; `root` is updated when the leaf was the root.
+pub(crate) fn split_leaf(
+    nodes: &mut Vec<SpatialNode>,
+    root: &mut u32,
+    parent: Parent,
+    leaf: u32,
+    new_leaf: u32,
+    axis: u32,
+) -> u32 {
+    let index = nodes.len() as u32;
+    nodes.push(SpatialNode { child: [LEAF | leaf, LEAF | new_leaf], axis });
+    match parent {
+        Parent::Root => *root = index,
+        Parent::Node { node, side } => nodes[node as usize].child[side as usize] = index,
+    }
+    index
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn descent_finds_the_half_a_point_lies_in() {
+        let mut nodes = Vec::new();
+        let mut root = LEAF;
+        let first = split_leaf(&mut nodes, &mut root, Parent::Root, 0, 1, 0);
+        split_leaf(&mut nodes, &mut root, Parent::Node { node: first, side: 1 }, 1, 2, 1);
+        let (low, inverse) = (Vec3::splat(-1.0), Vec3::splat(0.5));
+        let at = |x: f32, y: f32| locate_leaf(&nodes, root, low, inverse, Vec3::new(x, y, 0.0));
+        assert_eq!(at(-0.5, 0.7), Some(0));
+        assert_eq!(at(0.5, -0.7), Some(1));
+        assert_eq!(at(0.5, 0.7), Some(2));
+        assert_eq!(at(9.0, 9.0), Some(2), "outside points clamp to the box");
+        assert_eq!(at(f32::NAN, 0.0), None);
+    }
+}

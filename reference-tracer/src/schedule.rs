@@ -1,0 +1,144 @@
+//! When a guided render learns: all the time (`online`, the seed's way), or in
+//! iterations of 1, 2, 4, … passes whose images are discarded, the guide refitted at each
+//! boundary, and then a final image rendered with the guide frozen (`iterative`,
+//! Müller et al. 2017, §5).
+
+use crate::render::Budget;
+
+/// The training schedule of a guided render.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Schedule {
+    /// Learn during every pass, rebuild the guide's sampling after each, keep every pass.
+    Online,
+    /// Train in iterations of doubling length (discarded), refit between them, then
+    /// render the rest of the budget frozen: no records, no integral estimates.
+    Iterative,
+}
+
+impl Schedule {
+    /// Every schedule, in the order the command line lists them.
+    pub const ALL: [Schedule; 2] = [Schedule::Online, Schedule::Iterative];
+
+    /// The command-line name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Schedule::Online => "online",
+            Schedule::Iterative => "iterative",
+        }
+    }
+
+    /// Parses a command-line name.
+    pub fn from_name(name: &str) -> Result<Self, String> {
+        Self::ALL
+            .into_iter()
+            .find(|s| s.name() == name)
+            .ok_or_else(|| format!("unknown schedule `{name}` (online, iterative)"))
+    }
+}
+
+/// What the render loop does after a pass of the iterative schedule.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Step {
+    /// A training pass inside an iteration: discard it, keep learning, no refit yet.
+    Train,
+    /// The pass ended an iteration: discard it and refit the guide; `last` when training
+    /// stops here and the rest of the budget renders frozen.
+    Refit {
+        /// Whether this was the last training iteration.
+        last: bool,
+    },
+    /// A pass of the frozen final image: keep it.
+    Render,
+}
+
+/// The iterative schedule's progress through a render.
+#[derive(Clone, Copy, Debug)]
+pub struct Training {
+    /// Passes in the current iteration (1, 2, 4, …).
+    iteration_passes: u32,
+    /// Passes done in it.
+    done: u32,
+    /// When it started, seconds into the render.
+    started: f64,
+    /// Training passes so far.
+    total: u32,
+    /// Whether training goes on.
+    active: bool,
+}
+
+impl Training {
+    /// A schedule that trains first when `active` (else every pass renders).
+    pub fn new(active: bool) -> Self {
+        Self { iteration_passes: 1, done: 0, started: 0.0, total: 0, active }
+    }
+
+    /// Whether the next pass trains (records and learns).
+    pub fn learning(&self) -> bool {
+        self.active
+    }
+
+    /// Accounts for a pass that ended `seconds` into the render.
+    ///
+    /// An iteration that took d seconds is followed by one of ≈ 2d. Training goes on
+    /// while the time left after that next iteration is still at least twice its length,
+    /// so the frozen image gets at least half the time even in the worst case. Under a
+    /// sample budget of N, training goes on while its passes stay within N/2.
+    pub fn after_pass(&mut self, seconds: f64, budget: Budget) -> Step {
+        if !self.active {
+            return Step::Render;
+        }
+        self.done += 1;
+        self.total += 1;
+        if self.done < self.iteration_passes {
+            return Step::Train;
+        }
+        let next = 2 * self.iteration_passes;
+        let goes_on = match budget {
+            Budget::Seconds(limit) => {
+                let next_seconds = 2.0 * (seconds - self.started);
+                limit - seconds - next_seconds >= 2.0 * next_seconds
+            }
+            Budget::SamplesPerPixel(spp) => 2 * (self.total as u64 + next as u64) <= spp as u64,
+        };
+        self.iteration_passes = next;
+        self.done = 0;
+        self.started = seconds;
+        self.active = goes_on;
+        Step::Refit { last: !goes_on }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn iterations_double_and_training_stops_in_time() {
+        let mut training = Training::new(true);
+        let mut steps = Vec::new();
+        // One second per pass, a 60 s budget: iterations of 1, 2, 4, 8 passes end at 1,
+        // 3, 7, 15 s; after 8 the next (16 s) would leave 60 - 15 - 16 = 29 < 32.
+        let mut t = 0.0;
+        while training.learning() {
+            t += 1.0;
+            steps.push(training.after_pass(t, Budget::Seconds(60.0)));
+        }
+        let refits: Vec<usize> =
+            steps.iter().enumerate().filter(|(_, s)| matches!(s, Step::Refit { .. })).map(|(i, _)| i + 1).collect();
+        assert_eq!(refits, [1, 3, 7, 15]);
+        assert_eq!(steps.last(), Some(&Step::Refit { last: true }));
+        assert_eq!(training.after_pass(t + 1.0, Budget::Seconds(60.0)), Step::Render);
+    }
+
+    #[test]
+    fn a_sample_budget_trains_at_most_half_as_many_passes() {
+        let mut training = Training::new(true);
+        let mut passes = 0;
+        while training.learning() {
+            passes += 1;
+            training.after_pass(passes as f64, Budget::SamplesPerPixel(64));
+        }
+        assert_eq!(passes, 31, "iterations 1 + 2 + 4 + 8 + 16 ≤ 32");
+        assert_eq!(Training::new(false).after_pass(1.0, Budget::SamplesPerPixel(4)), Step::Render);
+    }
+}
