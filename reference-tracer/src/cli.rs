@@ -216,6 +216,15 @@ pub struct TraceOptions {
     /// The tree guide's memory budget, MiB.
     #[arg(long, default_value_t = 16.0)]
     tree_mib: f64,
+    /// The tree's spatial split constant c: a leaf splits past c·√R of an epoch's R records.
+    #[arg(long)]
+    tree_threshold: Option<f32>,
+    /// The tree's directional split share ρ of a leaf's flux, in (0, 1).
+    #[arg(long)]
+    tree_flux_fraction: Option<f32>,
+    /// Whether the tree's distributions fold onto the normal's hemisphere (on, off).
+    #[arg(long, value_parser = parse_switch)]
+    tree_fold: Option<bool>,
     /// Patches per hemisphere as U×V, e.g. 8x16 (for --guide volume: bands of cos θ ×
     /// sectors of φ over the whole sphere).
     #[arg(long, default_value = "8x16", value_parser = parse_patches)]
@@ -405,6 +414,14 @@ fn parse_integral(s: &str) -> Result<IntegralEstimator, String> {
     }
 }
 
+fn parse_switch(s: &str) -> Result<bool, String> {
+    match s {
+        "on" => Ok(true),
+        "off" => Ok(false),
+        _ => Err(format!("`{s}` is neither on nor off")),
+    }
+}
+
 fn parse_patches(s: &str) -> Result<[u32; 2], String> {
     let (u, v) = s.split_once('x').ok_or_else(|| format!("`{s}` is not U×V like 8x16"))?;
     let parse = |t: &str| t.parse::<u32>().map_err(|e| format!("`{t}`: {e}"));
@@ -464,6 +481,9 @@ impl TraceOptions {
                         integral: self.integral.unwrap_or(defaults.update_rule.integral),
                     },
                     uniform_mix: self.uniform_mix.unwrap_or(defaults.uniform_mix),
+                    spatial_threshold: self.tree_threshold.unwrap_or(defaults.spatial_threshold),
+                    flux_fraction: self.tree_flux_fraction.unwrap_or(defaults.flux_fraction),
+                    fold_to_hemisphere: self.tree_fold.unwrap_or(defaults.fold_to_hemisphere),
                     ..defaults
                 };
                 settings.validate().map_err(|e| format!("tree guide: {e}"))?;
@@ -988,12 +1008,15 @@ pub fn statistics_json(
         "scene": prepared.scene.path.display().to_string(),
         "method": method.name(),
         "plan": prepared.plan.describe(),
+        "learned": prepared.guide.as_ref().filter(|_| method.uses_guide()).map(|g| g.describe()),
         "light_guide": light_guide,
         "environment_guide": environment_guide,
         "width": image.width,
         "height": image.height,
         "passes": statistics.passes,
         "training_passes": statistics.training_passes,
+        "training_seconds": statistics.training_seconds,
+        "kept_paths_per_second": statistics.kept_paths_per_second(),
         "spp": statistics.passes,
         "paths": c.paths,
         "rays": c.rays,
@@ -1082,6 +1105,17 @@ fn run_render(args: &RenderArgs) -> Result<(), String> {
         c.vertices as f64 / c.paths.max(1) as f64,
         checkpoints.last().map(|c| format!(", relMSE {:.4e}", c.error.relmse)).unwrap_or_default()
     );
+    if statistics.training_passes > 0 {
+        eprintln!(
+            "training: {} passes in {:.2} s; the kept passes ran at {:.0} paths/s",
+            statistics.training_passes,
+            statistics.training_seconds,
+            statistics.kept_paths_per_second()
+        );
+    }
+    if let Some(guide) = prepared.guide.as_ref().filter(|_| args.integrator.uses_guide()) {
+        eprintln!("learned: {}", guide.describe());
+    }
     eprintln!("wrote {}", args.out.display());
     Ok(())
 }

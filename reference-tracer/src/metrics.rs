@@ -11,6 +11,12 @@ pub struct ImageError {
     pub mse: f64,
     /// Mean absolute percentage error: mean(|I - R| / (R + 0.01)).
     pub mape: f64,
+    /// The median pixel's relative squared error (its channels' mean): what a typical
+    /// pixel sees, untouched by a few fireflies.
+    pub median_relmse: f64,
+    /// The share of the relMSE held by the worst 1 % of pixels: near 0.01 for even
+    /// noise, near 1 where a few fireflies make the error.
+    pub worst_share: f64,
 }
 
 /// Compares `image` with `reference` (same size).
@@ -19,17 +25,26 @@ pub fn image_error(image: &Image, reference: &Image) -> Option<ImageError> {
         return None;
     }
     let mut sums = [0.0f64; 3];
+    let mut per_pixel = Vec::with_capacity(image.pixels.len());
     for (&i, &r) in image.pixels.iter().zip(&reference.pixels) {
+        let mut pixel = 0.0;
         for c in 0..3 {
             let (i, r) = (i[c] as f64, r[c] as f64);
             let d = i - r;
-            sums[0] += d * d / (r * r + 0.01);
+            pixel += d * d / (r * r + 0.01);
             sums[1] += d * d;
             sums[2] += d.abs() / (r.abs() + 0.01);
         }
+        sums[0] += pixel;
+        per_pixel.push(pixel / 3.0);
     }
     let n = (image.pixels.len() * 3).max(1) as f64;
-    Some(ImageError { relmse: sums[0] / n, mse: sums[1] / n, mape: sums[2] / n })
+    per_pixel.sort_by(|a, b| b.total_cmp(a));
+    let median_relmse = per_pixel.get(per_pixel.len() / 2).copied().unwrap_or(0.0);
+    let worst: f64 = per_pixel[..per_pixel.len().div_ceil(100)].iter().sum();
+    let total: f64 = per_pixel.iter().sum();
+    let worst_share = if total > 0.0 { worst / total } else { 0.0 };
+    Some(ImageError { relmse: sums[0] / n, mse: sums[1] / n, mape: sums[2] / n, median_relmse, worst_share })
 }
 
 #[cfg(test)]
@@ -48,5 +63,13 @@ mod tests {
         assert!((e.relmse - (1.0 / 1.01 + 0.01 / 0.01) / 2.0).abs() < 1e-6);
         assert!((e.mape - (1.0 / 1.01 + 0.1 / 0.01) / 2.0).abs() < 1e-5);
         assert!(image_error(&brighter, &Image { width: 1, height: 1, pixels: vec![Vec3::ZERO] }).is_none());
+        // One firefly among 200 even pixels: the median sees the even ones, the worst 1 %
+        // (two pixels) hold nearly all the error.
+        let flat = Image { width: 200, height: 1, pixels: vec![Vec3::splat(1.0); 200] };
+        let mut noisy = Image { width: 200, height: 1, pixels: vec![Vec3::splat(1.1); 200] };
+        noisy.pixels[7] = Vec3::splat(101.0);
+        let e = image_error(&noisy, &flat).unwrap();
+        assert!((e.median_relmse - 0.01 / 1.01).abs() < 1e-6, "{e:?}");
+        assert!(e.worst_share > 0.99, "{e:?}");
     }
 }

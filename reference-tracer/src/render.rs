@@ -65,6 +65,10 @@ pub struct RenderStatistics {
     pub passes: u32,
     /// Training passes discarded before them.
     pub training_passes: u32,
+    /// Seconds into the render when the last training pass ended.
+    pub training_seconds: f64,
+    /// Path counters of the training passes.
+    pub training_counters: PathCounters,
     /// Path counters over all passes.
     pub counters: PathCounters,
     /// Wall-clock seconds from the first pass to the last.
@@ -76,6 +80,12 @@ pub struct RenderStatistics {
 }
 
 impl RenderStatistics {
+    /// Paths per second of the passes kept in the image (after training).
+    pub fn kept_paths_per_second(&self) -> f64 {
+        let paths = self.counters.paths - self.training_counters.paths;
+        paths as f64 / (self.render_seconds - self.training_seconds).max(1e-9)
+    }
+
     /// Counts a finished pass whose samples summed to `pass_sum` over `pixels` pixels.
     pub fn add_pass(&mut self, pass_sum: [f64; 3], pixels: usize, counters: PathCounters) {
         self.pass_means.push(pass_sum.map(|s| s / pixels as f64));
@@ -245,6 +255,8 @@ pub(crate) fn end_of_pass(
         statistics.pass_means.clear();
         statistics.passes = 0;
         statistics.training_passes += 1;
+        statistics.training_seconds = seconds;
+        statistics.training_counters = statistics.counters;
         return false;
     }
     on_pass(&Progress { passes: statistics.passes, seconds, film, counters: statistics.counters });

@@ -28,10 +28,15 @@ pub struct ReportRow {
     pub mse: f64,
     /// MAPE against the reference.
     pub mape: f64,
+    /// The median pixel's relative squared error.
+    pub median_relmse: f64,
+    /// The share of the relMSE held by the worst 1 % of pixels.
+    pub worst_share: f64,
 }
 
 /// The CSV header, fixed: scripts and tests read it.
-pub const CSV_HEADER: &str = "method,seconds,spp,paths_per_second,nonzero_share,mean_path_length,relmse,mse,mape";
+pub const CSV_HEADER: &str =
+    "method,seconds,spp,paths_per_second,nonzero_share,mean_path_length,relmse,mse,mape,median_relmse,worst_share";
 
 /// Rows for one method's checkpoints.
 pub fn checkpoint_rows(method: &str, checkpoints: &[Checkpoint]) -> Vec<ReportRow> {
@@ -49,6 +54,8 @@ pub fn checkpoint_rows(method: &str, checkpoints: &[Checkpoint]) -> Vec<ReportRo
                 relmse: c.error.relmse,
                 mse: c.error.mse,
                 mape: c.error.mape,
+                median_relmse: c.error.median_relmse,
+                worst_share: c.error.worst_share,
             }
         })
         .collect()
@@ -59,7 +66,7 @@ pub fn write_csv(path: &Path, rows: &[ReportRow]) -> Result<(), String> {
     let mut text = format!("{CSV_HEADER}\n");
     for r in rows {
         text += &format!(
-            "{},{:.6},{},{:.1},{:.6},{:.4},{:.6e},{:.6e},{:.6e}\n",
+            "{},{:.6},{},{:.1},{:.6},{:.4},{:.6e},{:.6e},{:.6e},{:.6e},{:.6}\n",
             r.method,
             r.seconds,
             r.spp,
@@ -68,7 +75,9 @@ pub fn write_csv(path: &Path, rows: &[ReportRow]) -> Result<(), String> {
             r.mean_path_length,
             r.relmse,
             r.mse,
-            r.mape
+            r.mape,
+            r.median_relmse,
+            r.worst_share
         );
     }
     std::fs::write(path, text).map_err(|e| format!("cannot write {}: {e}", path.display()))
@@ -79,9 +88,10 @@ fn at_time<'a>(rows: &'a [ReportRow], method: &str, seconds: f64) -> Option<&'a 
     rows.iter().filter(|r| r.method == method && r.seconds >= seconds).min_by(|a, b| a.seconds.total_cmp(&b.seconds))
 }
 
-/// A markdown summary: per method its final figures and the bytes of what it learned
-/// (`learned_bytes[i]` for `methods[i]`), and relMSE at each of `times` (the first
-/// checkpoint at or after it) with its ratio to `baseline`'s.
+/// A markdown summary: per method its final figures (with relMSE × spp, the error per
+/// sample; the median pixel's error; the share of the worst 1 % of pixels) and the bytes
+/// of what it learned (`learned_bytes[i]` for `methods[i]`), and relMSE at each of
+/// `times` (the first checkpoint at or after it) with its ratio to `baseline`'s.
 pub fn markdown(
     rows: &[ReportRow],
     methods: &[String],
@@ -89,11 +99,13 @@ pub fn markdown(
     times: &[f64],
     baseline: &str,
 ) -> String {
-    let mut text = String::from("| method | spp | paths/s | non-zero share | mean path length | learned bytes |");
+    let mut text = String::from(
+        "| method | spp | paths/s | non-zero share | mean path length | learned bytes | relMSE × spp | median | worst 1 % |",
+    );
     for t in times {
         text += &format!(" relMSE @ {t} s | ÷ {baseline} |");
     }
-    text += "\n|---|---|---|---|---|---|";
+    text += "\n|---|---|---|---|---|---|---|---|---|";
     text += &"---|---|".repeat(times.len());
     text += "\n";
     for (method, bytes) in methods.iter().zip(learned_bytes) {
@@ -102,8 +114,14 @@ pub fn markdown(
             continue;
         };
         text += &format!(
-            "| {method} | {} | {:.0} | {:.4} | {:.2} | {bytes} |",
-            last.spp, last.paths_per_second, last.nonzero_share, last.mean_path_length
+            "| {method} | {} | {:.0} | {:.4} | {:.2} | {bytes} | {:.3} | {:.3e} | {:.3} |",
+            last.spp,
+            last.paths_per_second,
+            last.nonzero_share,
+            last.mean_path_length,
+            last.relmse * last.spp as f64,
+            last.median_relmse,
+            last.worst_share
         );
         for &t in times {
             match (at_time(rows, method, t), at_time(rows, baseline, t)) {

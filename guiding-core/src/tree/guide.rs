@@ -278,14 +278,16 @@ impl SpatialDirectionalTree {
         }
     }
 
-    /// Splits every leaf that took more than the epoch's threshold of records, heaviest
-    /// first, as long as the budget holds; halves keep splitting while their share does.
-    fn split_busy_leaves(&mut self, records: &[u32], threshold: f64) {
-        let mut queue: Vec<(u32, f64)> = records
+    /// Splits every leaf whose records (over all epochs, halved at each split) pass the
+    /// threshold, heaviest first, as long as the budget holds; halves keep splitting
+    /// while their share does.
+    fn split_busy_leaves(&mut self, threshold: f64) {
+        let mut queue: Vec<(u32, f64)> = self
+            .leaves
             .iter()
             .enumerate()
-            .filter(|&(_, &n)| n as f64 > threshold)
-            .map(|(leaf, &n)| (leaf as u32, n as f64))
+            .filter(|(_, leaf)| leaf.weight > threshold)
+            .map(|(index, leaf)| (index as u32, leaf.weight))
             .collect();
         queue.sort_by(|a, b| b.1.total_cmp(&a.1));
         let mut next = 0;
@@ -490,7 +492,10 @@ impl Guide for SpatialDirectionalTree {
         }
         self.quad = out;
         self.accepted_before += epoch_records;
-        self.split_busy_leaves(&records, self.settings.split_threshold(epoch_records));
+        // Records count over all epochs (the blend keeps what they taught), so an online
+        // schedule of short epochs refines in space as an iterative one does.
+        let total_weight: f64 = self.leaves.iter().map(|leaf| leaf.weight).sum();
+        self.split_busy_leaves(self.settings.split_threshold(total_weight));
         self.sums = (0..self.quad.len() * 4).map(|_| atomic_f32::new(0.0)).collect();
         self.leaf_records = (0..self.leaves.len()).map(|_| AtomicU32::new(0)).collect();
     }

@@ -15,10 +15,13 @@ pub struct SpatialDirectionalTreeSettings {
     /// Refinement stops (spatial splits first, then directional depth) where it would
     /// pass it.
     pub budget_bytes: usize,
-    /// c of the spatial split rule: a leaf splits when it took more than
-    /// `max(min_split_records, c·√R)` records in the epoch, R the records of the whole
-    /// tree in that epoch (Müller et al. 2017 use c·√(2^k) with 2^k the epoch's samples
-    /// per pixel; √R grows the same way and does not depend on the image size).
+    /// c of the spatial split rule: a leaf splits when it holds more than
+    /// `max(min_split_records, c·√R)` records, R the records of the whole tree, both
+    /// counted over every epoch learned from (a split halves a leaf's count). Müller et
+    /// al. 2017 use c·√(2^k) with 2^k the samples per pixel of iteration k; √R grows the
+    /// same way, does not depend on the image size, and lets short online epochs refine
+    /// as far as long iterations do. 32 by default: against 8, at 20 s on door and
+    /// cornell, a quarter of the leaves, 1.13–1.18× the paths/s and 0.93× the relMSE.
     pub spatial_threshold: f32,
     /// The least records that let a leaf split, whatever the epoch's size.
     pub min_split_records: u32,
@@ -48,7 +51,7 @@ impl Default for SpatialDirectionalTreeSettings {
     fn default() -> Self {
         Self {
             budget_bytes: 16 << 20,
-            spatial_threshold: 8.0,
+            spatial_threshold: 32.0,
             min_split_records: 512,
             flux_fraction: 0.01,
             max_directional_depth: MAX_DIRECTIONAL_DEPTH,
@@ -81,8 +84,8 @@ impl SpatialDirectionalTreeSettings {
         Ok(())
     }
 
-    /// The records above which a leaf splits in an epoch of `epoch_records` in all.
-    pub fn split_threshold(&self, epoch_records: u64) -> f64 {
-        (self.spatial_threshold as f64 * libm::sqrt(epoch_records as f64)).max(self.min_split_records as f64)
+    /// The records above which a leaf splits when the tree holds `records` in all.
+    pub fn split_threshold(&self, records: f64) -> f64 {
+        (self.spatial_threshold as f64 * libm::sqrt(records.max(0.0))).max(self.min_split_records as f64)
     }
 }
