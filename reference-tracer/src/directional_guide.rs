@@ -133,6 +133,30 @@ impl DirectionalGuide {
         }
     }
 
+    /// Its learned state: guiding-core's byte image of its structure.
+    pub fn to_bytes(&self) -> Vec<u8> {
+        match self {
+            DirectionalGuide::Hemisphere(guide) => guide.to_bytes(),
+            DirectionalGuide::Volume(guide) => guide.to_bytes(),
+            DirectionalGuide::Mixture(guide) => guide.to_bytes(),
+            DirectionalGuide::Tree(guide) => guide.to_bytes(),
+        }
+    }
+
+    /// A guide of `structure` read from [`to_bytes`](Self::to_bytes)' output; damaged
+    /// or foreign bytes give guiding-core's error, naming the field.
+    pub fn from_bytes(structure: GuideStructure, bytes: &[u8]) -> Result<Self, String> {
+        let named = |e: guiding_core::Error| format!("{} guide: {e}", structure.name());
+        Ok(match structure {
+            GuideStructure::Hemisphere => {
+                DirectionalGuide::Hemisphere(Box::new(HemisphereGrid::from_bytes(bytes).map_err(named)?))
+            }
+            GuideStructure::Volume => DirectionalGuide::Volume(IrradianceVolume::from_bytes(bytes).map_err(named)?),
+            GuideStructure::Mixture => DirectionalGuide::Mixture(GaussianMixture::from_bytes(bytes).map_err(named)?),
+            GuideStructure::Tree => DirectionalGuide::Tree(SpatialDirectionalTree::from_bytes(bytes).map_err(named)?),
+        })
+    }
+
     /// Its counters and size.
     pub fn stats(&self) -> GuideStats {
         match self {
