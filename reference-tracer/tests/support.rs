@@ -11,9 +11,12 @@ use reference_tracer::render::{Budget, RenderSettings, RenderStatistics};
 use reference_tracer::scene_intersector::IntersectorChoice;
 pub use reference_tracer::schedule::Schedule;
 
-/// A fresh temporary folder for one test.
+/// A fresh temporary folder for one test; each call its own, so tests running at once
+/// that ask for the same name never share (or delete) each other's files.
 pub fn temp_folder(name: &str) -> PathBuf {
-    let folder = std::env::temp_dir().join(format!("lodestar-{name}-{}", std::process::id()));
+    static CALLS: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
+    let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let folder = std::env::temp_dir().join(format!("lodestar-{name}-{}-{call}", std::process::id()));
     let _ = std::fs::remove_dir_all(&folder);
     std::fs::create_dir_all(&folder).unwrap();
     folder
