@@ -1314,6 +1314,15 @@ fn trace(@builtin(global_invocation_id) id: vec3<u32>) {
             }
         }
 
+        // Russian roulette before the direction is drawn, as on the CPU: a survival that
+        // depended on the direction would bias what the guide learns.
+        var survival = 1.0;
+        if (depth + 1u >= params.rr_depth) {
+            survival = min(max(max(throughput.x, throughput.y), throughput.z), 0.95);
+            if (survival <= 0.0 || next_f32() >= survival) { break; }
+            throughput /= survival;
+        }
+
         // The next direction: the guide with probability p where a probe exists, else
         // the BSDF, weighted by the one-sample mixture pdf.
         let u_choice = next_f32();
@@ -1348,16 +1357,12 @@ fn trace(@builtin(global_invocation_id) id: vec3<u32>) {
         }
         if (!(factor.x < INFINITY && factor.y < INFINITY && factor.z < INFINITY)) { break; }
         throughput *= factor;
-        if (depth + 1u >= params.rr_depth) {
-            let survival = min(max(max(throughput.x, throughput.y), throughput.z), 0.95);
-            if (survival <= 0.0 || next_f32() >= survival) { break; }
-            throughput /= survival;
-        }
         if (learning && count < MAX_VERTICES) {
-            // A vertex without an estimate of its own passes its goal back, scaled.
+            // A vertex without an estimate of its own passes its goal back, scaled by its
+            // factor and 1/survival.
             if ((delta || probe == NO_PROBE) && count > 0u) {
                 path[count - 1u].onward_kind = ONWARD_CARRY;
-                path[count - 1u].onward = luminance(factor);
+                path[count - 1u].onward = luminance(factor) / survival;
             }
             path[count].probe = probe;
             path[count].onward_kind = ONWARD_END;
