@@ -236,7 +236,9 @@ impl SpatialDirectionalTree {
     pub fn set_leaf_cells(&mut self, region: TreeRegion, depth: u32, values: &[f32]) {
         let depth = depth.clamp(1, 6);
         let side = 1usize << depth;
-        let Some(leaf) = self.leaves.get(region.leaf as usize).copied() else { return };
+        if region.leaf as usize >= self.leaves.len() {
+            return;
+        }
         let value = |i: usize| values.get(i % values.len().max(1)).copied().filter(|v| v.is_finite() && *v > 0.0);
         let cells: Vec<f64> = (0..side * side).map(|i| value(i).unwrap_or(0.0) as f64).collect();
         // Rebuild the arena with every other leaf's tree copied and this one replaced.
@@ -246,7 +248,7 @@ impl SpatialDirectionalTree {
             if index == region.leaf as usize {
                 roots.push(full_tree(&cells, side, 0, 0, side, &mut out).0);
             } else {
-                roots.push(quadtree::copy_tree(&self.quad, other.root, &mut out));
+                roots.push(quadtree::copy_tree(&self.quad, other.root, 0, &mut out));
             }
         }
         for (l, root) in self.leaves.iter_mut().zip(roots) {
@@ -254,7 +256,6 @@ impl SpatialDirectionalTree {
         }
         let total: f64 = cells.iter().sum();
         self.leaves[region.leaf as usize].flux = total.min(f32::MAX as f64) as f32 / (side * side) as f32;
-        let _ = leaf;
         self.quad = out;
         self.sums = (0..self.quad.len() * 4).map(|_| atomic_f32::new(0.0)).collect();
         self.leaf_records.iter().for_each(|r| r.store(0, Ordering::Relaxed));
@@ -310,7 +311,10 @@ impl SpatialDirectionalTree {
             extent[axis as usize] *= 0.5;
             let half = SpatialLeaf { weight: old.weight * 0.5, extent, depth: old.depth + 1, ..old };
             self.leaves[leaf as usize] = SpatialLeaf { parent: Parent::Node { node, side: 0 }, ..half };
-            let root = quadtree::copy_tree(&self.quad.clone(), old.root, &mut self.quad);
+            // Copied aside and appended: the arena is not cloned for every split.
+            let mut copy = Vec::with_capacity(tree_nodes);
+            let root = quadtree::copy_tree(&self.quad, old.root, self.quad.len(), &mut copy);
+            self.quad.extend(copy);
             self.leaves.push(SpatialLeaf { root, parent: Parent::Node { node, side: 1 }, ..half });
             if count * 0.5 > threshold {
                 queue.push((leaf, count * 0.5));

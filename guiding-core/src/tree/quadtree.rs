@@ -113,18 +113,19 @@ pub(crate) fn add_record(sums: &[AtomicU32], cell: usize, weight: f32) {
     atomic_f32::update(&sums[cell], |s| (s + weight).min(f32::MAX));
 }
 
-/// Appends a copy of the tree at `root` of `nodes` to `out`; returns the copy's root.
-pub(crate) fn copy_tree(nodes: &[QuadNode], root: u32, out: &mut Vec<QuadNode>) -> u32 {
-    let index = out.len();
+/// Appends a copy of the tree at `root` of `nodes` to `out`, whose first node will sit
+/// at arena index `base`; returns the copy's root (an arena index).
+pub(crate) fn copy_tree(nodes: &[QuadNode], root: u32, base: usize, out: &mut Vec<QuadNode>) -> u32 {
+    let local = out.len();
     out.push(nodes[root as usize]);
     for cell in 0..4 {
         let child = nodes[root as usize].child[cell];
         if child != 0 {
-            let copied = copy_tree(nodes, child, out);
-            out[index].child[cell] = copied;
+            let copied = copy_tree(nodes, child, base, out);
+            out[local].child[cell] = copied;
         }
     }
-    index as u32
+    (base + local) as u32
 }
 
 /// Nodes in the tree at `root`.
