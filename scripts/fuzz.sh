@@ -61,17 +61,38 @@ seed_corpora
 # mistaken for a crash, and the sources can change while a long run goes on.
 cargo fuzz build --sanitizer none
 binaries="fuzz/target/$(rustc -vV | sed -n 's/^host: //p')/release"
-for target in "${targets[@]}"; do
-    start=$SECONDS
-    log=$(mktemp)
+
+# One target for `seconds`; its log stays in `logs` for the summary.
+run_target() {
+    local target=$1 log="$logs/$1.log" start=$SECONDS
     mkdir -p "fuzz/artifacts/$target"
     if ! "$binaries/$target" "fuzz/corpus/$target" -artifact_prefix="fuzz/artifacts/$target/" \
         -max_total_time="$seconds" -print_final_stats=1 -max_len=65536 >"$log" 2>&1; then
         tail -40 "$log"
         echo "fuzz: $target crashed; the input is in fuzz/artifacts/$target" >&2
-        exit 1
+        return 1
     fi
+    local runs
     runs=$(grep -o 'stat::number_of_executed_units: [0-9]*' "$log" | awk '{print $2}')
     echo "fuzz: $target: ${runs:-?} executions in $((SECONDS - start)) s, no crash"
-    rm -f "$log"
+}
+
+# libFuzzer runs on one core: as many targets at once as there are cores, each for its
+# full time.
+logs=$(mktemp -d)
+trap 'rm -rf "$logs"' EXIT
+parallel=$(nproc)
+failed=0
+pids=()
+for target in "${targets[@]}"; do
+    run_target "$target" &
+    pids+=($!)
+    if [ ${#pids[@]} -ge "$parallel" ]; then
+        wait "${pids[0]}" || failed=1
+        pids=("${pids[@]:1}")
+    fi
 done
+for pid in "${pids[@]}"; do
+    wait "$pid" || failed=1
+done
+exit $failed
