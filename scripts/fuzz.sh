@@ -62,7 +62,7 @@ seed_corpora
 cargo fuzz build --sanitizer none
 binaries="fuzz/target/$(rustc -vV | sed -n 's/^host: //p')/release"
 
-# One target for `seconds`; its log stays in `logs` for the summary.
+# One target for `seconds`, logging into `logs` (its tail is printed if it crashes).
 run_target() {
     local target=$1 log="$logs/$1.log" start=$SECONDS
     mkdir -p "fuzz/artifacts/$target"
