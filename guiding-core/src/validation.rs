@@ -22,8 +22,10 @@ fn direction(frame: &Frame, z: f64, phi: f64) -> Vec3 {
 
 /// ∫ pdf dω over the rectangle `z0..z1 × phi0..phi1` of (cos θ, φ) in `frame` (dω = dz dφ).
 ///
-/// Adaptive: a rectangle whose 5×5 grid of pdf values (edges included) is constant
-/// counts as constant; otherwise it is split in four, until `max_depth` levels or until
+/// Adaptive: the rectangle is first split into 4×4 (so a small feature of the pdf, a
+/// sliver of a dense cell clipping a corner, is not missed by one coarse grid); then a
+/// part whose 5×5 grid of pdf values (edges included) is constant counts as constant;
+/// otherwise it is split in four, until `max_depth` levels or until
 /// its spread of values times its area is at most `tolerance` (an absolute bound on the
 /// leaf's error, in probability), where the midpoint rule over its four quarters takes
 /// over. Those midpoints are interior, so
@@ -39,6 +41,30 @@ pub fn integrate_rectangle(
     tolerance: f64,
     max_depth: u32,
 ) -> f64 {
+    integrate_adaptively(pdf, frame, (z0, z1), (phi0, phi1), tolerance, max_depth, MIN_SPLITS)
+}
+
+/// Levels [`integrate_rectangle`] always splits, within its depth limit.
+const MIN_SPLITS: u32 = 2;
+
+/// [`integrate_rectangle`], splitting at least `splits` more levels.
+fn integrate_adaptively(
+    pdf: &impl Fn(Vec3) -> f32,
+    frame: &Frame,
+    (z0, z1): (f64, f64),
+    (phi0, phi1): (f64, f64),
+    tolerance: f64,
+    max_depth: u32,
+    splits: u32,
+) -> f64 {
+    let (zm, phim) = (0.5 * (z0 + z1), 0.5 * (phi0 + phi1));
+    if splits > 0 && max_depth > 0 {
+        let (depth, splits) = (max_depth - 1, splits - 1);
+        return integrate_adaptively(pdf, frame, (z0, zm), (phi0, phim), tolerance, depth, splits)
+            + integrate_adaptively(pdf, frame, (z0, zm), (phim, phi1), tolerance, depth, splits)
+            + integrate_adaptively(pdf, frame, (zm, z1), (phi0, phim), tolerance, depth, splits)
+            + integrate_adaptively(pdf, frame, (zm, z1), (phim, phi1), tolerance, depth, splits);
+    }
     let (mut low, mut high) = (f32::INFINITY, f32::NEG_INFINITY);
     for i in 0..25 {
         let z = z0 + (z1 - z0) * (i / 5) as f64 * 0.25;
@@ -51,7 +77,6 @@ pub fn integrate_rectangle(
     if low == high {
         return area * low as f64;
     }
-    let (zm, phim) = (0.5 * (z0 + z1), 0.5 * (phi0 + phi1));
     if max_depth == 0 || (high - low) as f64 * area <= tolerance {
         let (dz, dphi) = (0.25 * (z1 - z0), 0.25 * (phi1 - phi0));
         let quarters = [(zm - dz, phim - dphi), (zm - dz, phim + dphi), (zm + dz, phim - dphi), (zm + dz, phim + dphi)];
@@ -59,10 +84,10 @@ pub fn integrate_rectangle(
         return area * 0.25 * sum;
     }
     let depth = max_depth - 1;
-    integrate_rectangle(pdf, frame, (z0, zm), (phi0, phim), tolerance, depth)
-        + integrate_rectangle(pdf, frame, (z0, zm), (phim, phi1), tolerance, depth)
-        + integrate_rectangle(pdf, frame, (zm, z1), (phi0, phim), tolerance, depth)
-        + integrate_rectangle(pdf, frame, (zm, z1), (phim, phi1), tolerance, depth)
+    integrate_adaptively(pdf, frame, (z0, zm), (phi0, phim), tolerance, depth, 0)
+        + integrate_adaptively(pdf, frame, (z0, zm), (phim, phi1), tolerance, depth, 0)
+        + integrate_adaptively(pdf, frame, (zm, z1), (phi0, phim), tolerance, depth, 0)
+        + integrate_adaptively(pdf, frame, (zm, z1), (phim, phi1), tolerance, depth, 0)
 }
 
 /// ∫ pdf dω over the whole sphere (should be 1), on a `cells × 2·cells` grid of

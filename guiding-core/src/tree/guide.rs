@@ -8,12 +8,14 @@ use core::sync::atomic::{AtomicU32, Ordering};
 
 use glam::{Vec2, Vec3};
 
+use super::axis::{rotated_cells, LeafCounts, ROTATED_NODES, ROTATED_SIDE};
+use super::distribution::TreeDistribution;
 use super::quadtree::{self, EpochBlend, QuadNode, RefitRule, NODE_BYTES};
 use super::settings::SpatialDirectionalTreeSettings;
 use super::spatial::{locate_leaf, split_leaf, Parent, SpatialNode, LEAF, SPATIAL_NODE_BYTES};
-use super::square::{direction_to_square, square_to_direction, SQUARE_TO_SOLID_ANGLE};
+use super::square::{direction_to_square, to_axis_frame, SQUARE_TO_SOLID_ANGLE};
 use crate::atomic_f32;
-use crate::distribution::{DirectionSample, DirectionalDistribution, MIN_SAMPLED_COS_THETA};
+use crate::distribution::MIN_SAMPLED_COS_THETA;
 use crate::error::Error;
 use crate::frame::Frame;
 use crate::guide::{Guide, GuideStats};
@@ -27,6 +29,10 @@ pub struct TreeRegion {
     pub leaf: u32,
     /// Unit normal facing the side the path arrives from.
     pub normal: Vec3,
+    /// Whether the point lies in the upper half of the leaf along the axis the leaf
+    /// would split next: records count per half, so the two leaves of a split can each
+    /// build their square around their own normals' axis.
+    pub upper_half: bool,
 }
 
 /// One spatial leaf.
@@ -44,10 +50,14 @@ pub(crate) struct SpatialLeaf {
     pub(crate) extent: Vec3,
     /// Splits from the root.
     pub(crate) depth: u32,
+    /// The world axis (0, 1, 2 for x, y, z) its quadtree's square is built around: the
+    /// axis most of its records' normals lie along, so that the hemisphere of such a
+    /// normal is exactly one half of the square.
+    pub(crate) axis: u32,
 }
 
-/// Bytes one spatial leaf costs (with its epoch's record counter).
-pub(crate) const LEAF_BYTES: usize = core::mem::size_of::<SpatialLeaf>() + core::mem::size_of::<AtomicU32>();
+/// Bytes one spatial leaf costs (with its epoch's counts).
+pub(crate) const LEAF_BYTES: usize = core::mem::size_of::<SpatialLeaf>() + core::mem::size_of::<LeafCounts>();
 
 /// Q(x, ω) as a spatial binary tree whose every leaf holds a directional quadtree over
 /// the sphere (Lambert's equal-area square), both refined between epochs where the
@@ -90,8 +100,9 @@ pub struct SpatialDirectionalTree {
     pub(crate) spatial_root: u32,
     pub(crate) spatial: Vec<SpatialNode>,
     pub(crate) leaves: Vec<SpatialLeaf>,
-    /// Records each leaf took in the current epoch.
-    pub(crate) leaf_records: Vec<AtomicU32>,
+    /// What each leaf's records of the current epoch were: per half, how many, and
+    /// along which axis their normals lay.
+    pub(crate) leaf_counts: Vec<LeafCounts>,
     pub(crate) quad: Vec<QuadNode>,
     /// Building sums Σ target/pdf, four per quadtree node (f32 bits).
     pub(crate) sums: Vec<AtomicU32>,
@@ -100,65 +111,6 @@ pub struct SpatialDirectionalTree {
     pub(crate) accepted_before: u64,
     pub(crate) rejected_non_finite: AtomicU32,
     pub(crate) rejected_negative: AtomicU32,
-}
-
-/// The sampling distribution of one region: the leaf's quadtree, folded onto the
-/// normal's hemisphere when the settings say so, mixed with a uniform share.
-#[derive(Clone, Copy, Debug)]
-pub struct TreeDistribution<'a> {
-    nodes: &'a [QuadNode],
-    root: u32,
-    normal: Vec3,
-    uniform_mix: f32,
-    fold: bool,
-}
-
-impl TreeDistribution<'_> {
-    /// The quadtree's own density at `direction`, per steradian (not folded, not mixed).
-    #[inline]
-    fn tree_pdf(&self, direction: Vec3) -> f32 {
-        quadtree::square_density(self.nodes, self.root, direction_to_square(direction)) / SQUARE_TO_SOLID_ANGLE
-    }
-}
-
-impl DirectionalDistribution for TreeDistribution<'_> {
-    fn sample(&self, u: Vec2) -> DirectionSample {
-        let mix = self.uniform_mix;
-        let direction = if u.x < mix {
-            let u = Vec2::new(u.x / mix, u.y);
-            let z = if self.fold { u.x.max(MIN_SAMPLED_COS_THETA) } else { 1.0 - 2.0 * u.x };
-            let r = libm::sqrtf((1.0 - z * z).max(0.0));
-            let phi = 2.0 * PI * u.y;
-            let local = Vec3::new(r * libm::cosf(phi), r * libm::sinf(phi), z);
-            Frame::from_normal(self.normal).to_world(local)
-        } else {
-            let u = Vec2::new(((u.x - mix) / (1.0 - mix)).min(super::square::ONE_BELOW), u.y);
-            let d = square_to_direction(quadtree::sample_square(self.nodes, self.root, u));
-            let c = d.dot(self.normal);
-            if self.fold && c < MIN_SAMPLED_COS_THETA {
-                // Mirrored in the tangent plane, kept just above it.
-                let mirrored = d - self.normal * (c - c.abs().max(MIN_SAMPLED_COS_THETA));
-                mirrored.normalize()
-            } else {
-                d
-            }
-        };
-        DirectionSample { direction, pdf: self.pdf(direction) }
-    }
-
-    fn pdf(&self, direction: Vec3) -> f32 {
-        let mix = self.uniform_mix;
-        if !self.fold {
-            return mix / SQUARE_TO_SOLID_ANGLE + (1.0 - mix) * self.tree_pdf(direction);
-        }
-        let c = direction.dot(self.normal);
-        if c.is_nan() || c < 0.0 {
-            return 0.0;
-        }
-        let mirrored = direction - self.normal * (2.0 * c);
-        let tree = self.tree_pdf(direction) + self.tree_pdf(mirrored);
-        mix * (0.5 / PI) + (1.0 - mix) * tree
-    }
 }
 
 impl SpatialDirectionalTree {
@@ -175,7 +127,7 @@ impl SpatialDirectionalTree {
         // A flat box still gets a positive extent: its points all fall in one layer.
         let size = (high - low).max(Vec3::ZERO);
         let extent = size.max(Vec3::splat(size.max_element().max(1.0) * 1e-6));
-        let leaf = SpatialLeaf { root: 0, flux: 0.0, weight: 0.0, parent: Parent::Root, extent, depth: 0 };
+        let leaf = SpatialLeaf { root: 0, flux: 0.0, weight: 0.0, parent: Parent::Root, extent, depth: 0, axis: 2 };
         Ok(Self {
             settings,
             low: low - extent * 1e-6,
@@ -184,7 +136,7 @@ impl SpatialDirectionalTree {
             spatial_root: LEAF,
             spatial: Vec::new(),
             leaves: alloc::vec![leaf],
-            leaf_records: alloc::vec![AtomicU32::new(0)],
+            leaf_counts: alloc::vec![LeafCounts::default()],
             quad: alloc::vec![QuadNode::UNIFORM],
             sums: (0..4).map(|_| atomic_f32::new(0.0)).collect(),
             epoch: 0,
@@ -217,6 +169,11 @@ impl SpatialDirectionalTree {
         self.leaves.get(leaf as usize).map_or(0, |l| depth(&self.quad, l.root))
     }
 
+    /// The world axis (0, 1, 2 for x, y, z) `leaf`'s directional square is built around.
+    pub fn leaf_axis(&self, leaf: u32) -> Option<u32> {
+        self.leaves.get(leaf as usize).map(|l| l.axis)
+    }
+
     /// ∫ L dω over the sphere at `leaf` as learned (radiance × sr).
     pub fn leaf_flux(&self, leaf: u32) -> f32 {
         self.leaves.get(leaf as usize).map_or(0.0, |l| l.flux)
@@ -225,12 +182,13 @@ impl SpatialDirectionalTree {
     /// Q(region, ω): the radiance the leaf has learned to arrive from `direction`.
     pub fn q(&self, region: TreeRegion, direction: Vec3) -> f32 {
         let Some(leaf) = self.leaves.get(region.leaf as usize) else { return 0.0 };
-        let density = quadtree::square_density(&self.quad, leaf.root, direction_to_square(direction));
-        leaf.flux * density / SQUARE_TO_SOLID_ANGLE
+        let p = direction_to_square(to_axis_frame(direction, leaf.axis));
+        leaf.flux * quadtree::square_density(&self.quad, leaf.root, p) / SQUARE_TO_SOLID_ANGLE
     }
 
     /// Replaces `region`'s quadtree by a full tree of `depth` levels (1..=6) whose
-    /// 4^depth cells (row-major over the square, u fastest) hold the flux `values`
+    /// 4^depth cells (row-major over the leaf's square, whose polar axis is
+    /// [`leaf_axis`](Self::leaf_axis), u fastest) hold the flux `values`
     /// (non-finite or negative values count as 0); the building sums of the epoch are
     /// cleared. For tests and tools that set a known distribution.
     pub fn set_leaf_cells(&mut self, region: TreeRegion, depth: u32, values: &[f32]) {
@@ -246,7 +204,7 @@ impl SpatialDirectionalTree {
         let mut roots = Vec::with_capacity(self.leaves.len());
         for (index, other) in self.leaves.iter().enumerate() {
             if index == region.leaf as usize {
-                roots.push(full_tree(&cells, side, 0, 0, side, &mut out).0);
+                roots.push(quadtree::full_tree(&cells, side, 0, 0, side, &mut out).0);
             } else {
                 roots.push(quadtree::copy_tree(&self.quad, other.root, 0, &mut out));
             }
@@ -258,7 +216,7 @@ impl SpatialDirectionalTree {
         self.leaves[region.leaf as usize].flux = total.min(f32::MAX as f64) as f32 / (side * side) as f32;
         self.quad = out;
         self.sums = (0..self.quad.len() * 4).map(|_| atomic_f32::new(0.0)).collect();
-        self.leaf_records.iter().for_each(|r| r.store(0, Ordering::Relaxed));
+        self.leaf_counts = (0..self.leaves.len()).map(|_| LeafCounts::default()).collect();
     }
 
     /// Bytes held by the trees and their building statistics.
@@ -291,7 +249,7 @@ impl SpatialDirectionalTree {
             .map(|(index, leaf)| (index as u32, leaf.weight))
             .collect();
         queue.sort_by(|a, b| b.1.total_cmp(&a.1));
-        let mut next = 0;
+        let (mut next, mut orphaned) = (0, false);
         while next < queue.len() {
             let (leaf, count) = queue[next];
             next += 1;
@@ -299,8 +257,14 @@ impl SpatialDirectionalTree {
             if old.depth >= self.settings.max_spatial_depth {
                 continue;
             }
+            // Each half picks the axis its records' normals lie along (the counts were
+            // kept per half for this); a half that picks a new one gets its tree turned.
+            let counts = core::mem::take(&mut self.leaf_counts[leaf as usize]);
+            let axes = [0, 1].map(|h| counts.majority_axis(&[h]).unwrap_or(old.axis));
             let tree_nodes = quadtree::node_count(&self.quad, old.root);
-            let grown = bytes_for(self.spatial.len() + 1, self.leaves.len() + 1, self.quad.len() + tree_nodes);
+            let added = (axes[0] != old.axis) as usize * ROTATED_NODES
+                + if axes[1] != old.axis { ROTATED_NODES } else { tree_nodes };
+            let grown = bytes_for(self.spatial.len() + 1, self.leaves.len() + 1, self.quad.len() + added);
             if grown > self.settings.budget_bytes {
                 continue;
             }
@@ -310,17 +274,45 @@ impl SpatialDirectionalTree {
             let mut extent = old.extent;
             extent[axis as usize] *= 0.5;
             let half = SpatialLeaf { weight: old.weight * 0.5, extent, depth: old.depth + 1, ..old };
-            self.leaves[leaf as usize] = SpatialLeaf { parent: Parent::Node { node, side: 0 }, ..half };
-            // Copied aside and appended: the arena is not cloned for every split.
-            let mut copy = Vec::with_capacity(tree_nodes);
-            let root = quadtree::copy_tree(&self.quad, old.root, self.quad.len(), &mut copy);
-            self.quad.extend(copy);
-            self.leaves.push(SpatialLeaf { root, parent: Parent::Node { node, side: 1 }, ..half });
+            let high_root = if axes[1] != old.axis {
+                self.turned_tree(old.root, old.axis, axes[1])
+            } else {
+                // Copied aside and appended: the arena is not cloned for every split.
+                let mut copy = Vec::with_capacity(tree_nodes);
+                let root = quadtree::copy_tree(&self.quad, old.root, self.quad.len(), &mut copy);
+                self.quad.extend(copy);
+                root
+            };
+            let low_root = if axes[0] != old.axis {
+                orphaned = true;
+                self.turned_tree(old.root, old.axis, axes[0])
+            } else {
+                old.root
+            };
+            let side = |side| Parent::Node { node, side };
+            self.leaves[leaf as usize] = SpatialLeaf { root: low_root, parent: side(0), axis: axes[0], ..half };
+            self.leaves.push(SpatialLeaf { root: high_root, parent: side(1), axis: axes[1], ..half });
+            self.leaf_counts.push(LeafCounts::default());
             if count * 0.5 > threshold {
                 queue.push((leaf, count * 0.5));
                 queue.push((new_leaf, count * 0.5));
             }
         }
+        if orphaned {
+            // A low half turned away from its tree left that tree unreachable.
+            let mut out = Vec::with_capacity(self.quad.len());
+            for leaf in &mut self.leaves {
+                leaf.root = quadtree::copy_tree(&self.quad, leaf.root, 0, &mut out);
+            }
+            self.quad = out;
+        }
+    }
+
+    /// Appends the tree at `root` (built around `old_axis`) turned to `axis`; returns
+    /// the new root.
+    fn turned_tree(&mut self, root: u32, old_axis: u32, axis: u32) -> u32 {
+        let cells = rotated_cells(&self.quad, root, old_axis, axis);
+        quadtree::full_tree(&cells, ROTATED_SIDE, 0, 0, ROTATED_SIDE, &mut self.quad).0
     }
 }
 
@@ -330,30 +322,6 @@ fn bytes_for(spatial_nodes: usize, leaves: usize, quad_nodes: usize) -> usize {
         + spatial_nodes * SPATIAL_NODE_BYTES
         + leaves * LEAF_BYTES
         + quad_nodes * NODE_BYTES
-}
-
-/// Appends a full quadtree over the `size`×`size` block of `cells` at (`x`, `y`) (a
-/// `side`-wide grid); returns the node's index (or 0 and the block's sum for a single
-/// cell) and the block's flux.
-fn full_tree(cells: &[f64], side: usize, x: usize, y: usize, size: usize, out: &mut Vec<QuadNode>) -> (u32, f64) {
-    if size == 1 {
-        return (0, cells[y * side + x]);
-    }
-    let index = out.len();
-    out.push(QuadNode::UNIFORM);
-    let half = size / 2;
-    let mut flux = [0.0f64; 4];
-    for (cell, f) in flux.iter_mut().enumerate() {
-        let (cx, cy) = (x + (cell & 1) * half, y + (cell >> 1) * half);
-        let (child, total) = full_tree(cells, side, cx, cy, half, out);
-        out[index].child[cell] = child;
-        *f = total;
-    }
-    let sum: f64 = flux.iter().sum();
-    if sum > 0.0 {
-        out[index].probability = flux.map(|f| (f / sum) as f32);
-    }
-    (index as u32, sum)
 }
 
 impl Clone for SpatialDirectionalTree {
@@ -367,7 +335,7 @@ impl Clone for SpatialDirectionalTree {
             spatial_root: self.spatial_root,
             spatial: self.spatial.clone(),
             leaves: self.leaves.clone(),
-            leaf_records: copy(&self.leaf_records),
+            leaf_counts: self.leaf_counts.clone(),
             quad: self.quad.clone(),
             sums: copy(&self.sums),
             epoch: self.epoch,
@@ -386,19 +354,15 @@ impl Guide for SpatialDirectionalTree {
         if !normal.is_finite() {
             return None;
         }
-        let leaf = locate_leaf(&self.spatial, self.spatial_root, self.low, self.inverse_extent, position)?;
-        Some(TreeRegion { leaf, normal })
+        let (leaf, local) = locate_leaf(&self.spatial, self.spatial_root, self.low, self.inverse_extent, position)?;
+        let split_axis = self.leaves.get(leaf as usize)?.extent.max_position();
+        Some(TreeRegion { leaf, normal, upper_half: local[split_axis] >= 0.5 })
     }
 
     fn distribution(&self, region: TreeRegion) -> TreeDistribution<'_> {
-        let root = self.leaves.get(region.leaf as usize).map_or(0, |l| l.root);
-        TreeDistribution {
-            nodes: &self.quad,
-            root,
-            normal: region.normal,
-            uniform_mix: self.settings.uniform_mix,
-            fold: self.settings.fold_to_hemisphere,
-        }
+        let (root, axis) = self.leaves.get(region.leaf as usize).map_or((0, 2), |l| (l.root, l.axis));
+        let settings = &self.settings;
+        TreeDistribution::new(&self.quad, root, axis, region.normal, settings.uniform_mix, settings.fold_to_hemisphere)
     }
 
     /// Records `target` as if `direction` had been drawn uniformly over the sphere
@@ -425,9 +389,10 @@ impl Guide for SpatialDirectionalTree {
             return UpdateOutcome::OutsideDomain;
         }
         let weight = (target / pdf).min(f32::MAX);
-        let cell = quadtree::leaf_cell(&self.quad, leaf.root, direction_to_square(direction));
+        let p = direction_to_square(to_axis_frame(direction, leaf.axis));
+        let cell = quadtree::leaf_cell(&self.quad, leaf.root, p);
         quadtree::add_record(&self.sums, cell, weight);
-        atomic_f32::increment_saturating(&self.leaf_records[region.leaf as usize]);
+        self.leaf_counts[region.leaf as usize].add(region.upper_half as usize, region.normal);
         UpdateOutcome::Accepted
     }
 
@@ -463,7 +428,7 @@ impl Guide for SpatialDirectionalTree {
     }
 
     fn rebuild_sampling(&mut self) {
-        let records: Vec<u32> = self.leaf_records.iter().map(|r| r.load(Ordering::Relaxed)).collect();
+        let records: Vec<u32> = self.leaf_counts.iter().map(LeafCounts::records).collect();
         let epoch_records: u64 = records.iter().map(|&n| n as u64).sum();
         self.epoch = self.epoch.saturating_add(1);
         if epoch_records == 0 {
@@ -474,7 +439,7 @@ impl Guide for SpatialDirectionalTree {
         let fixed = bytes_for(self.spatial.len(), self.leaves.len(), 0);
         let node_budget = self.settings.budget_bytes.saturating_sub(fixed) / NODE_BYTES;
         let mut out = Vec::with_capacity(self.quad.len());
-        let mut scratch = Vec::new();
+        let (mut scratch, mut unrotated) = (Vec::new(), Vec::new());
         let leaf_count = self.leaves.len();
         for (index, &n) in records.iter().enumerate() {
             let leaf = self.leaves[index];
@@ -488,11 +453,26 @@ impl Guide for SpatialDirectionalTree {
                 max_depth: self.settings.max_directional_depth,
                 node_cap: node_budget.saturating_sub(leaf_count - index - 1).max(out.len() + 1),
             };
-            let (root, flux) = quadtree::refit(&self.quad, &self.sums, leaf.root, blend, rule, &mut scratch, &mut out);
+            // A leaf whose records' normals mostly lie along another axis turns its square
+            // to it (where the budget has room), so their hemispheres are halves of it.
+            let best = self.leaf_counts[index].majority_axis(&[0, 1]).unwrap_or(leaf.axis);
+            let turns = best != leaf.axis && out.len() + ROTATED_NODES <= rule.node_cap;
+            let (root, flux) = if turns {
+                unrotated.clear();
+                let (root, flux) =
+                    quadtree::refit(&self.quad, &self.sums, leaf.root, blend, rule, &mut scratch, &mut unrotated);
+                let cells = rotated_cells(&unrotated, root, leaf.axis, best);
+                (quadtree::full_tree(&cells, ROTATED_SIDE, 0, 0, ROTATED_SIDE, &mut out).0, flux)
+            } else {
+                quadtree::refit(&self.quad, &self.sums, leaf.root, blend, rule, &mut scratch, &mut out)
+            };
             let leaf = &mut self.leaves[index];
             leaf.root = root;
             leaf.flux = flux.min(f32::MAX as f64) as f32;
             leaf.weight += n as f64;
+            if turns {
+                leaf.axis = best;
+            }
         }
         self.quad = out;
         self.accepted_before += epoch_records;
@@ -501,11 +481,11 @@ impl Guide for SpatialDirectionalTree {
         let total_weight: f64 = self.leaves.iter().map(|leaf| leaf.weight).sum();
         self.split_busy_leaves(self.settings.split_threshold(total_weight));
         self.sums = (0..self.quad.len() * 4).map(|_| atomic_f32::new(0.0)).collect();
-        self.leaf_records = (0..self.leaves.len()).map(|_| AtomicU32::new(0)).collect();
+        self.leaf_counts = (0..self.leaves.len()).map(|_| LeafCounts::default()).collect();
     }
 
     fn stats(&self) -> GuideStats {
-        let pending: u64 = self.leaf_records.iter().map(|r| r.load(Ordering::Relaxed) as u64).sum();
+        let pending: u64 = self.leaf_counts.iter().map(|c| c.records() as u64).sum();
         let cells = 3 * self.quad.len() + self.leaves.len();
         GuideStats {
             regions: self.leaves.len(),
@@ -539,6 +519,7 @@ impl Guide for SpatialDirectionalTree {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::distribution::DirectionalDistribution;
     use crate::low_discrepancy::Pcg32;
 
     fn tree(settings: SpatialDirectionalTreeSettings) -> SpatialDirectionalTree {
@@ -656,7 +637,7 @@ mod tests {
         assert_eq!(tree.update_sampled(region, Vec3::Z, -1.0, 1.0), UpdateOutcome::RejectedNegative);
         assert_eq!(tree.update_sampled(region, Vec3::Z, 1.0, 0.0), UpdateOutcome::OutsideDomain);
         assert_eq!(tree.update_sampled(region, Vec3::new(2.0, 0.0, 0.0), 1.0, 1.0), UpdateOutcome::OutsideDomain);
-        let stray = TreeRegion { leaf: 99, normal: Vec3::Z };
+        let stray = TreeRegion { leaf: 99, normal: Vec3::Z, upper_half: false };
         assert_eq!(tree.update_sampled(stray, Vec3::Z, 1.0, 1.0), UpdateOutcome::OutsideDomain);
         let stats = tree.stats();
         assert_eq!((stats.rejected_non_finite, stats.rejected_negative, stats.accepted_updates), (1, 1, 0));
@@ -676,44 +657,5 @@ mod tests {
         }
         let tiny = SpatialDirectionalTreeSettings { budget_bytes: 16, ..Default::default() };
         assert!(matches!(SpatialDirectionalTree::new(Vec3::ZERO, Vec3::ONE, tiny), Err(Error::BudgetTooSmall { .. })));
-    }
-}
-
-#[cfg(test)]
-mod sampling_tests {
-    use super::*;
-    use crate::low_discrepancy::Pcg32;
-
-    /// E over the sampler of 1/pdf is the solid angle of the support (2π for the
-    /// folded distribution) exactly when the pdf matches the sampler everywhere: a check
-    /// that reaches the deepest, spikiest cells, where a chi-square's bins cannot.
-    #[test]
-    fn inverse_pdf_averages_to_the_hemisphere_on_spiky_trees() {
-        let settings = SpatialDirectionalTreeSettings { uniform_mix: 0.0, ..Default::default() };
-        let mut tree = SpatialDirectionalTree::new(Vec3::splat(-1.0), Vec3::ONE, settings).unwrap();
-        let normal = Vec3::new(0.3, -0.5, 0.8).normalize();
-        let region = tree.locate(Vec3::ZERO, normal).unwrap();
-        let mut rng = Pcg32::new(3, 1);
-        for _ in 0..8 {
-            let snapshot = tree.clone();
-            let d = snapshot.distribution(region);
-            for _ in 0..50_000 {
-                let s = d.sample(rng.next_vec2());
-                // Heavy-tailed targets, as Russian roulette makes them.
-                let u = rng.next_f32();
-                let target = if u < 0.01 { 1e3 } else { 0.1 };
-                tree.update_sampled(region, s.direction, target, s.pdf);
-            }
-            tree.rebuild_sampling();
-        }
-        let d = tree.distribution(region);
-        let n = 2_000_000;
-        let mut sum = 0.0f64;
-        for _ in 0..n {
-            let s = d.sample(rng.next_vec2());
-            sum += 1.0 / s.pdf as f64;
-        }
-        let mean = sum / n as f64;
-        assert!((mean / (2.0 * core::f64::consts::PI) - 1.0).abs() < 0.01, "E[1/pdf] = {mean}");
     }
 }

@@ -4,10 +4,13 @@
 //! 2017, "Practical Path Guiding", with the seed's targets of Eq. (1)).
 //!
 //! - [`SpatialDirectionalTree`]: the guide; [`SpatialDirectionalTreeSettings`]: its knobs.
-//! - Sampling and the pdf descend the leaf's quadtree once each (the pdf twice where the
-//!   distribution folds onto the normal's hemisphere); a record is one descent and one
-//!   lock-free add.
+//! - Each leaf's square is built around the world axis its records' normals lie along:
+//!   for such a normal, sampling and the pdf descend the leaf's quadtree once each, in
+//!   the half of the square above the surface; for other normals the sphere folds onto
+//!   the hemisphere (the pdf descends twice). A record is one descent and lock-free adds.
 
+mod axis;
+mod distribution;
 mod guide;
 mod quadtree;
 mod serialize;
@@ -15,6 +18,7 @@ mod settings;
 mod spatial;
 mod square;
 
-pub use guide::{SpatialDirectionalTree, TreeDistribution, TreeRegion};
+pub use distribution::TreeDistribution;
+pub use guide::{SpatialDirectionalTree, TreeRegion};
 pub use serialize::{FORMAT_VERSION, STRUCTURE_TAG};
 pub use settings::{SpatialDirectionalTreeSettings, MAX_DIRECTIONAL_DEPTH, MAX_SPATIAL_DEPTH};

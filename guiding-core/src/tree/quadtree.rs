@@ -41,41 +41,66 @@ fn descend(p: Vec2) -> (usize, Vec2) {
 }
 
 /// Picks between two masses `a` and `b` with `u` ∈ [0, 1) and rescales `u` to [0, 1)
-/// within the one picked: `false` for `a`.
+/// within the one picked: `false` for `a`. Selects rather than branches: the pick is a
+/// coin flip the branch predictor cannot learn, taken twice per level of every descent.
 #[inline]
 fn choose(u: &mut f32, a: f32, b: f32) -> bool {
     let total = a + b;
     if total.is_nan() || total <= 0.0 {
-        // Both empty (only in damaged data): split evenly.
+        // Both empty, or damaged data: split evenly.
         let high = *u >= 0.5;
         *u = if high { *u * 2.0 - 1.0 } else { *u * 2.0 };
         return high;
     }
     let scaled = *u * total;
-    if scaled < a {
-        *u = (scaled / a).min(ONE_BELOW);
-        false
-    } else {
-        *u = ((scaled - a) / b).clamp(0.0, ONE_BELOW);
-        true
-    }
+    // `b > 0` keeps an empty high side from being picked when u·total rounds up to a.
+    let high = (scaled >= a) & (b > 0.0);
+    let (offset, width) = (if high { a } else { 0.0 }, if high { b } else { a });
+    *u = ((scaled - offset) / width).clamp(0.0, ONE_BELOW);
+    high
 }
 
-/// A point of the square drawn with the tree's density from `u` ∈ [0, 1)²: one descent,
-/// the uniform numbers rescaled at each level (no further random numbers).
-pub(crate) fn sample_square(nodes: &[QuadNode], root: u32, mut u: Vec2) -> Vec2 {
-    let (mut origin, mut size, mut node) = (Vec2::ZERO, 1.0f32, root as usize);
+/// A point of the square drawn with the tree's density from `u` ∈ [0, 1)², and the
+/// density there relative to the uniform one: one descent, the uniform numbers rescaled
+/// at each level (no further random numbers). `half` restricts the draw to the half
+/// u ≥ 1/2 (`Some(true)`: polar z ≥ 0) or u < 1/2 (`Some(false)`); the density returned
+/// is the whole tree's, so the restricted density is it over [`half_mass`].
+pub(crate) fn sample_square(nodes: &[QuadNode], root: u32, mut u: Vec2, half: Option<bool>) -> (Vec2, f32) {
+    let (mut origin, mut size, mut node, mut density) = (Vec2::ZERO, 1.0f32, root as usize, 1.0f32);
+    let mut forced = half;
     loop {
-        let [p0, p1, p2, p3] = nodes[node].probability;
-        let ix = choose(&mut u.x, p0 + p2, p1 + p3);
-        let iy = if ix { choose(&mut u.y, p1, p3) } else { choose(&mut u.y, p0, p2) };
+        let probability = nodes[node].probability;
+        let [p0, p1, p2, p3] = probability;
+        let ix = match forced.take() {
+            Some(high) => high,
+            None => choose(&mut u.x, p0 + p2, p1 + p3),
+        };
+        let (low, high) = (if ix { p1 } else { p0 }, if ix { p3 } else { p2 });
+        let iy = choose(&mut u.y, low, high);
         let cell = ix as usize + 2 * iy as usize;
+        density *= 4.0 * probability[cell];
         size *= 0.5;
         origin += Vec2::new(ix as u32 as f32, iy as u32 as f32) * size;
         match nodes[node].child[cell] {
-            0 => return (origin + u * size).min(Vec2::splat(ONE_BELOW)),
+            0 => {
+                // Kept inside the cell drawn: origin + u·size can round up onto its far edge.
+                let end = origin + Vec2::splat(size);
+                let below = Vec2::new(f32::from_bits(end.x.to_bits() - 1), f32::from_bits(end.y.to_bits() - 1));
+                return ((origin + u * size).min(below), density);
+            }
             child => node = child as usize,
         }
+    }
+}
+
+/// The share of the tree's mass in the half u ≥ 1/2 (`high`) or u < 1/2 of the square.
+#[inline]
+pub(crate) fn half_mass(nodes: &[QuadNode], root: u32, high: bool) -> f32 {
+    let [p0, p1, p2, p3] = nodes[root as usize].probability;
+    if high {
+        p1 + p3
+    } else {
+        p0 + p2
     }
 }
 
@@ -126,6 +151,37 @@ pub(crate) fn copy_tree(nodes: &[QuadNode], root: u32, base: usize, out: &mut Ve
         }
     }
     (base + local) as u32
+}
+
+/// Appends a full quadtree over the `size`×`size` block of `cells` at (`x`, `y`) (a
+/// `side`-wide grid); returns the node's index (or 0 and the block's sum for a single
+/// cell) and the block's flux.
+pub(crate) fn full_tree(
+    cells: &[f64],
+    side: usize,
+    x: usize,
+    y: usize,
+    size: usize,
+    out: &mut Vec<QuadNode>,
+) -> (u32, f64) {
+    if size == 1 {
+        return (0, cells[y * side + x]);
+    }
+    let index = out.len();
+    out.push(QuadNode::UNIFORM);
+    let half = size / 2;
+    let mut flux = [0.0f64; 4];
+    for (cell, f) in flux.iter_mut().enumerate() {
+        let (cx, cy) = (x + (cell & 1) * half, y + (cell >> 1) * half);
+        let (child, total) = full_tree(cells, side, cx, cy, half, out);
+        out[index].child[cell] = child;
+        *f = total;
+    }
+    let sum: f64 = flux.iter().sum();
+    if sum > 0.0 {
+        out[index].probability = flux.map(|f| (f / sum) as f32);
+    }
+    (index as u32, sum)
 }
 
 /// Nodes in the tree at `root`.
@@ -261,7 +317,7 @@ mod tests {
             for _ in 0..20_000 {
                 // Drawn from the tree itself, half the time, as a guided renderer would.
                 let (p, pdf) = if rng.next_f32() < 0.5 {
-                    let p = sample_square(&nodes, root, rng.next_vec2());
+                    let p = sample_square(&nodes, root, rng.next_vec2(), None).0;
                     (p, 0.5 * square_density(&nodes, root, p) + 0.5)
                 } else {
                     let p = rng.next_vec2();
@@ -304,7 +360,7 @@ mod tests {
         // Samples near the light: the share they take matches the density's mass there.
         let mut rng = Pcg32::new(7, 7);
         let near = (0..100_000)
-            .filter(|_| (sample_square(&nodes, root, rng.next_vec2()) - light).abs().max_element() < 4e-3)
+            .filter(|_| (sample_square(&nodes, root, rng.next_vec2(), None).0 - light).abs().max_element() < 4e-3)
             .count();
         assert!(near > 30_000, "{near} of 100000 samples near the light");
     }
@@ -314,9 +370,14 @@ mod tests {
         let (nodes, root) = learned(Vec2::new(0.61, 0.12));
         let mut rng = Pcg32::new(9, 1);
         for _ in 0..100_000 {
-            let p = sample_square(&nodes, root, rng.next_vec2());
+            let (p, density) = sample_square(&nodes, root, rng.next_vec2(), None);
             assert!(p.x >= 0.0 && p.x < 1.0 && p.y >= 0.0 && p.y < 1.0);
-            assert!(square_density(&nodes, root, p) > 0.0);
+            assert_eq!(square_density(&nodes, root, p), density);
+            for high in [false, true] {
+                let (q, density) = sample_square(&nodes, root, rng.next_vec2(), Some(high));
+                assert_eq!(q.x >= 0.5, high, "{q} outside its half");
+                assert_eq!(square_density(&nodes, root, q), density);
+            }
         }
     }
 

@@ -9,7 +9,8 @@
 //! u32 spatial root · u32 spatial nodes · u32 leaves · u32 directional nodes
 //! spatial node × n: u32 low child · u32 high child · u32 axis
 //! leaf × n: u32 root · f32 flux · u64 weight (f64 bits) · u32 parent (node·2 + side, or
-//!           u32::MAX) · vec3 extent · u32 depth · u32 records this epoch
+//!           u32::MAX) · vec3 extent · u32 depth · u32 axis (0, 1, 2) · this epoch's
+//!           counts: per half, u32 records and u32 normals along x, y, z
 //! directional node × n: f32 probability × 4 · u32 child × 4 · f32 building sum × 4
 //! u64 FNV-1a checksum
 //! ```
@@ -17,6 +18,7 @@
 use alloc::vec::Vec;
 use core::sync::atomic::{AtomicU32, Ordering};
 
+use super::axis::LeafCounts;
 use super::guide::{SpatialDirectionalTree, SpatialLeaf};
 use super::quadtree::QuadNode;
 use super::settings::{SpatialDirectionalTreeSettings, MAX_SPATIAL_DEPTH};
@@ -26,12 +28,12 @@ use crate::bytes::{invalid_field, open_guide_bytes, ByteWriter};
 use crate::error::{DecodeError, Error};
 
 /// Version of the byte format.
-pub const FORMAT_VERSION: u32 = 1;
+pub const FORMAT_VERSION: u32 = 2;
 /// Structure tag of a spatial × directional tree.
 pub const STRUCTURE_TAG: u32 = 4;
 
 const SPATIAL_NODE_SIZE: usize = 12;
-const LEAF_SIZE: usize = 40;
+const LEAF_SIZE: usize = 72;
 const QUAD_NODE_SIZE: usize = 48;
 const NO_PARENT: u32 = u32::MAX;
 
@@ -66,7 +68,7 @@ pub(crate) fn to_bytes(tree: &SpatialDirectionalTree) -> Vec<u8> {
         w.put_u32(node.child[1]);
         w.put_u32(node.axis);
     }
-    for (leaf, records) in tree.leaves.iter().zip(&tree.leaf_records) {
+    for (leaf, counts) in tree.leaves.iter().zip(&tree.leaf_counts) {
         w.put_u32(leaf.root);
         w.put_f32(leaf.flux);
         w.put_u64(leaf.weight.to_bits());
@@ -76,7 +78,8 @@ pub(crate) fn to_bytes(tree: &SpatialDirectionalTree) -> Vec<u8> {
         });
         leaf.extent.to_array().into_iter().for_each(|c| w.put_f32(c));
         w.put_u32(leaf.depth);
-        w.put_u32(records.load(Ordering::Relaxed));
+        w.put_u32(leaf.axis);
+        counts.values().into_iter().for_each(|c| w.put_u32(c));
     }
     for (index, node) in tree.quad.iter().enumerate() {
         node.probability.iter().for_each(|&p| w.put_f32(p));
@@ -127,7 +130,7 @@ pub(crate) fn from_bytes(bytes: &[u8]) -> Result<SpatialDirectionalTree, Error> 
     for _ in 0..counts[0] {
         spatial.push(SpatialNode { child: [r.u32()?, r.u32()?], axis: r.u32()? });
     }
-    let (mut leaves, mut leaf_records) = (Vec::with_capacity(counts[1]), Vec::with_capacity(counts[1]));
+    let (mut leaves, mut leaf_counts) = (Vec::with_capacity(counts[1]), Vec::with_capacity(counts[1]));
     for index in 0..counts[1] {
         let root = r.u32()?;
         let flux = r.f32()?;
@@ -141,8 +144,16 @@ pub(crate) fn from_bytes(bytes: &[u8]) -> Result<SpatialDirectionalTree, Error> 
         if depth > MAX_SPATIAL_DEPTH {
             return Err(invalid_field("leaf.depth", index, "at most 24"));
         }
-        leaves.push(SpatialLeaf { root, flux, weight, parent, extent, depth });
-        leaf_records.push(AtomicU32::new(r.u32()?));
+        let axis = r.u32()?;
+        if axis > 2 {
+            return Err(invalid_field("leaf.axis", index, "0, 1 or 2"));
+        }
+        leaves.push(SpatialLeaf { root, flux, weight, parent, extent, depth, axis });
+        let mut values = [0u32; 8];
+        for value in &mut values {
+            *value = r.u32()?;
+        }
+        leaf_counts.push(LeafCounts::from_values(values));
     }
     let (mut quad, mut sums) = (Vec::with_capacity(counts[2]), Vec::with_capacity(counts[2] * 4));
     for _ in 0..counts[2] {
@@ -162,7 +173,7 @@ pub(crate) fn from_bytes(bytes: &[u8]) -> Result<SpatialDirectionalTree, Error> 
         spatial_root,
         spatial,
         leaves,
-        leaf_records,
+        leaf_counts,
         quad,
         sums,
         epoch,
@@ -186,8 +197,8 @@ pub(crate) fn validate(tree: &SpatialDirectionalTree) -> Result<(), Error> {
     if tree.leaves.is_empty() || tree.quad.is_empty() {
         return Err(invalid_field("leaves", 0, "at least one leaf and one directional node"));
     }
-    if tree.sums.len() != tree.quad.len() * 4 || tree.leaf_records.len() != tree.leaves.len() {
-        return Err(invalid_field("building_sums", 0, "four per directional node, one count per leaf"));
+    if tree.sums.len() != tree.quad.len() * 4 || tree.leaf_counts.len() != tree.leaves.len() {
+        return Err(invalid_field("building_sums", 0, "four per directional node, one set of counts per leaf"));
     }
     if tree.memory_bytes() > tree.settings.budget_bytes {
         return Err(invalid_field("budget_bytes", 0, "at least the memory the tree holds"));
@@ -203,6 +214,9 @@ pub(crate) fn validate(tree: &SpatialDirectionalTree) -> Result<(), Error> {
         }
         if !finite_positive(leaf.extent) {
             return Err(invalid_field("leaf.extent", index, "finite and > 0"));
+        }
+        if leaf.axis > 2 {
+            return Err(invalid_field("leaf.axis", index, "0, 1 or 2"));
         }
         check_quadtree(tree, leaf.root, &mut seen)?;
     }

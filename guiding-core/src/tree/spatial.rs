@@ -24,8 +24,8 @@ pub(crate) struct SpatialNode {
 pub(crate) const SPATIAL_NODE_BYTES: usize = core::mem::size_of::<SpatialNode>();
 
 /// The leaf holding `position` (scene units), given the box's low corner and the
-/// reciprocal of its extent; `None` for a non-finite position. Points outside the box
-/// belong to the nearest leaf.
+/// reciprocal of its extent, and the position within the leaf's box (its unit cube);
+/// `None` for a non-finite position. Points outside the box belong to the nearest leaf.
 #[inline]
 pub(crate) fn locate_leaf(
     nodes: &[SpatialNode],
@@ -33,23 +33,36 @@ pub(crate) fn locate_leaf(
     low: Vec3,
     inverse_extent: Vec3,
     position: Vec3,
-) -> Option<u32> {
+) -> Option<(u32, Vec3)> {
     let p = (position - low) * inverse_extent;
     if !p.is_finite() {
         return None;
     }
-    let mut p = p.clamp(Vec3::ZERO, Vec3::splat(ONE_BELOW)).to_array();
+    let mut p = p.clamp(Vec3::ZERO, Vec3::splat(ONE_BELOW));
     let mut reference = root;
     while reference & LEAF == 0 {
         let node = &nodes[reference as usize];
-        let axis = node.axis as usize;
+        // Selects, not an indexed store and load: the point stays in registers.
+        let (on_x, on_y) = (node.axis == 0, node.axis == 1);
+        let coordinate = if on_x {
+            p.x
+        } else if on_y {
+            p.y
+        } else {
+            p.z
+        };
         // Doubling and subtracting one are exact: the point stays in its half's unit box.
-        let x = p[axis] * 2.0;
+        let x = coordinate * 2.0;
         let high = x >= 1.0;
-        p[axis] = if high { x - 1.0 } else { x };
+        let moved = if high { x - 1.0 } else { x };
+        p = Vec3::new(
+            if on_x { moved } else { p.x },
+            if on_y { moved } else { p.y },
+            if on_x || on_y { p.z } else { moved },
+        );
         reference = node.child[high as usize];
     }
-    Some(reference & !LEAF)
+    Some((reference & !LEAF, p))
 }
 
 /// Where a leaf hangs: the node and side whose child reference names it, or the root.
@@ -97,7 +110,7 @@ mod tests {
         let first = split_leaf(&mut nodes, &mut root, Parent::Root, 0, 1, 0);
         split_leaf(&mut nodes, &mut root, Parent::Node { node: first, side: 1 }, 1, 2, 1);
         let (low, inverse) = (Vec3::splat(-1.0), Vec3::splat(0.5));
-        let at = |x: f32, y: f32| locate_leaf(&nodes, root, low, inverse, Vec3::new(x, y, 0.0));
+        let at = |x: f32, y: f32| locate_leaf(&nodes, root, low, inverse, Vec3::new(x, y, 0.0)).map(|(leaf, _)| leaf);
         assert_eq!(at(-0.5, 0.7), Some(0));
         assert_eq!(at(0.5, -0.7), Some(1));
         assert_eq!(at(0.5, 0.7), Some(2));

@@ -1,0 +1,111 @@
+//! Each spatial leaf builds its directional square around one world axis: the one most of
+//! its records' normals lie along, so that such a normal's hemisphere is exactly half of
+//! the square. Here: the epoch's counts that choose it, and turning a leaf's quadtree
+//! to a new axis.
+
+use alloc::vec::Vec;
+use core::sync::atomic::{AtomicU32, Ordering};
+
+use glam::{Vec2, Vec3};
+
+use super::distribution::ALIGNED_COS;
+use super::quadtree::{self, QuadNode};
+use super::square::{direction_to_square, from_axis_frame, square_to_direction, to_axis_frame};
+use crate::atomic_f32;
+
+/// Cells per side of the quadtree a leaf gets when its axis changes (depth 4: 85 nodes),
+/// read from its old tree; the next refit splits and merges it as usual.
+pub(crate) const ROTATED_SIDE: usize = 16;
+/// Nodes of that tree.
+pub(crate) const ROTATED_NODES: usize = 85;
+
+/// A leaf's records of the current epoch, per half of the leaf along the axis it would
+/// split next: how many, and how many had a normal along world x, y and z (either sign,
+/// within [`ALIGNED_COS`]). The halves let a split's two new leaves each pick their axis.
+#[derive(Debug, Default)]
+pub(crate) struct LeafCounts([AtomicU32; 8]);
+
+impl LeafCounts {
+    /// Counts from their stored values (half 0's records and x, y, z votes, then half 1's).
+    pub(crate) fn from_values(values: [u32; 8]) -> Self {
+        Self(values.map(AtomicU32::new))
+    }
+
+    /// The counts as stored.
+    pub(crate) fn values(&self) -> [u32; 8] {
+        self.0.each_ref().map(|c| c.load(Ordering::Relaxed))
+    }
+
+    /// Records in both halves.
+    pub(crate) fn records(&self) -> u32 {
+        let v = self.values();
+        v[0].saturating_add(v[4])
+    }
+
+    /// Counts one record in `half` (0 or 1) whose surface had `normal`.
+    #[inline]
+    pub(crate) fn add(&self, half: usize, normal: Vec3) {
+        let base = 4 * (half & 1);
+        atomic_f32::increment_saturating(&self.0[base]);
+        if let Some(axis) = aligned_axis(normal) {
+            atomic_f32::increment_saturating(&self.0[base + 1 + axis as usize]);
+        }
+    }
+
+    /// The axis that more than half of the records in `halves` lie along, if any.
+    pub(crate) fn majority_axis(&self, halves: &[usize]) -> Option<u32> {
+        let v = self.values();
+        let (mut records, mut votes) = (0u64, [0u64; 3]);
+        for &h in halves {
+            records += v[4 * h] as u64;
+            for (axis, vote) in votes.iter_mut().enumerate() {
+                *vote += v[4 * h + 1 + axis] as u64;
+            }
+        }
+        let best = (0..3).max_by_key(|&a| votes[a])?;
+        (votes[best] * 2 > records).then_some(best as u32)
+    }
+}
+
+impl Clone for LeafCounts {
+    fn clone(&self) -> Self {
+        Self::from_values(self.values())
+    }
+}
+
+/// The world axis `normal` lies along (within [`ALIGNED_COS`], either sign), if any.
+#[inline]
+fn aligned_axis(normal: Vec3) -> Option<u32> {
+    let a = normal.abs();
+    let axis = if a.x >= a.y && a.x >= a.z {
+        0
+    } else if a.y >= a.z {
+        1
+    } else {
+        2
+    };
+    (a[axis] >= ALIGNED_COS).then_some(axis as u32)
+}
+
+/// The cells (row-major, u fastest) of a [`ROTATED_SIDE`]-wide quadtree over the square
+/// of polar axis `axis`, each holding the density of the tree at `root` of `nodes` (polar
+/// axis `old_axis`) averaged over 4×4 points: the same distribution, turned to `axis`
+/// (for [`quadtree::full_tree`]).
+pub(crate) fn rotated_cells(nodes: &[QuadNode], root: u32, old_axis: u32, axis: u32) -> Vec<f64> {
+    const POINTS: usize = 4;
+    let side = ROTATED_SIDE;
+    (0..side * side)
+        .map(|i| {
+            let (x, y) = (i % side, i / side);
+            let mut sum = 0.0f64;
+            for j in 0..POINTS * POINTS {
+                let offset = Vec2::new((j % POINTS) as f32 + 0.5, (j / POINTS) as f32 + 0.5) / POINTS as f32;
+                let p = (Vec2::new(x as f32, y as f32) + offset) / side as f32;
+                let world = from_axis_frame(square_to_direction(p), axis);
+                let old = direction_to_square(to_axis_frame(world, old_axis));
+                sum += quadtree::square_density(nodes, root, old) as f64;
+            }
+            sum
+        })
+        .collect()
+}

@@ -1,0 +1,249 @@
+//! [`TreeDistribution`]: the sampling distribution of one region of the tree, kept to
+//! the normal's hemisphere: the square's half on the normal's side where the normal lies
+//! along the leaf's axis (one descent per sample or pdf), the sphere folded onto the
+//! hemisphere elsewhere (two), mixed with a uniform share.
+
+use core::f32::consts::PI;
+
+use glam::{Vec2, Vec3};
+
+use super::quadtree::{self, QuadNode};
+use super::square::{direction_to_square, from_axis_frame, square_to_direction, to_axis_frame, SQUARE_TO_SOLID_ANGLE};
+use crate::distribution::{DirectionSample, DirectionalDistribution, MIN_SAMPLED_COS_THETA};
+use crate::frame::Frame;
+
+/// A normal within about 8° of a leaf's axis samples the half of the square on its side
+/// (one descent per pdf); one further off folds the sphere onto its hemisphere (two).
+pub(crate) const ALIGNED_COS: f32 = 0.99;
+
+/// A half of the square holding less than this share of the mass is not sampled on its
+/// own: its region samples the hemisphere uniformly.
+const MIN_HALF_MASS: f32 = 1e-6;
+
+/// How a region's distribution keeps to the normal's hemisphere.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum HemisphereMode {
+    /// The normal lies along the leaf's axis: the quadtree restricted to the square's
+    /// half on the normal's side (`high`: polar z ≥ 0), renormalised by `1 / mass`.
+    Half { high: bool, inverse_mass: f32 },
+    /// The normal does not: the quadtree's sphere mirrored onto the hemisphere.
+    Fold,
+    /// The whole sphere, as the tree has it (folding switched off).
+    Sphere,
+    /// Only the uniform share (the half on the normal's side holds no mass).
+    Uniform,
+}
+
+/// The sampling distribution of one region: the leaf's quadtree, kept to the normal's
+/// hemisphere (see the settings' `fold_to_hemisphere`) and mixed with a uniform share.
+#[derive(Clone, Copy, Debug)]
+pub struct TreeDistribution<'a> {
+    nodes: &'a [QuadNode],
+    root: u32,
+    axis: u32,
+    normal: Vec3,
+    uniform_mix: f32,
+    mode: HemisphereMode,
+}
+
+impl<'a> TreeDistribution<'a> {
+    /// The distribution of the quadtree at `root` of `nodes`, built around world axis
+    /// `axis`, for a surface of unit `normal`: `fold` keeps it to the normal's hemisphere,
+    /// `uniform_mix` of it spread uniformly there.
+    pub(crate) fn new(nodes: &'a [QuadNode], root: u32, axis: u32, normal: Vec3, uniform_mix: f32, fold: bool) -> Self {
+        let along = normal[axis as usize];
+        let mode = if !fold {
+            HemisphereMode::Sphere
+        } else if along.abs() >= ALIGNED_COS {
+            let high = along > 0.0;
+            let mass = quadtree::half_mass(nodes, root, high);
+            if mass >= MIN_HALF_MASS {
+                HemisphereMode::Half { high, inverse_mass: 1.0 / mass }
+            } else {
+                HemisphereMode::Uniform
+            }
+        } else {
+            HemisphereMode::Fold
+        };
+        Self { nodes, root, axis, normal, uniform_mix, mode }
+    }
+
+    /// The quadtree's own density at `direction`, per steradian (on the whole sphere).
+    #[inline]
+    fn tree_pdf(&self, direction: Vec3) -> f32 {
+        let p = direction_to_square(to_axis_frame(direction, self.axis));
+        quadtree::square_density(self.nodes, self.root, p) / SQUARE_TO_SOLID_ANGLE
+    }
+
+    /// A direction from the uniform share: over the normal's hemisphere, or the sphere.
+    fn sample_uniform(&self, u: Vec2) -> Vec3 {
+        let sphere = self.mode == HemisphereMode::Sphere;
+        let z = if sphere { 1.0 - 2.0 * u.x } else { u.x.max(MIN_SAMPLED_COS_THETA) };
+        let r = libm::sqrtf((1.0 - z * z).max(0.0));
+        let (s, c) = super::square::sin_cos_pi(2.0 * u.y - 1.0);
+        Frame::from_normal(self.normal).to_world(Vec3::new(r * c, r * s, z))
+    }
+
+    /// The uniform share's density at `direction`, per steradian.
+    #[inline]
+    fn uniform_pdf(&self, direction: Vec3) -> f32 {
+        if self.mode == HemisphereMode::Sphere {
+            1.0 / SQUARE_TO_SOLID_ANGLE
+        } else if direction.dot(self.normal) >= 0.0 {
+            0.5 / PI
+        } else {
+            0.0
+        }
+    }
+
+    /// The density of the tree's share at `direction`, per steradian, for the mode.
+    #[inline]
+    fn tree_share_pdf(&self, direction: Vec3) -> f32 {
+        match self.mode {
+            HemisphereMode::Half { high, inverse_mass } => {
+                let p = direction_to_square(to_axis_frame(direction, self.axis));
+                if (p.x >= 0.5) != high {
+                    return 0.0;
+                }
+                quadtree::square_density(self.nodes, self.root, p) * inverse_mass / SQUARE_TO_SOLID_ANGLE
+            }
+            HemisphereMode::Fold => {
+                let c = direction.dot(self.normal);
+                if c.is_nan() || c < 0.0 {
+                    return 0.0;
+                }
+                let mirrored = direction - self.normal * (2.0 * c);
+                self.tree_pdf(direction) + self.tree_pdf(mirrored)
+            }
+            HemisphereMode::Sphere => self.tree_pdf(direction),
+            HemisphereMode::Uniform => 0.0,
+        }
+    }
+}
+
+impl DirectionalDistribution for TreeDistribution<'_> {
+    fn sample(&self, u: Vec2) -> DirectionSample {
+        let mix = if self.mode == HemisphereMode::Uniform { 1.0 } else { self.uniform_mix };
+        if u.x < mix {
+            let direction = self.sample_uniform(Vec2::new(u.x / mix, u.y));
+            return DirectionSample { direction, pdf: self.pdf(direction) };
+        }
+        let u = Vec2::new(((u.x - mix) / (1.0 - mix)).min(super::square::ONE_BELOW), u.y);
+        if let HemisphereMode::Half { high, inverse_mass } = self.mode {
+            // The descent that draws the point gives its density: no second descent.
+            let (mut p, mut density) = quadtree::sample_square(self.nodes, self.root, u, Some(high));
+            // Kept off the horizon, as the other samplers keep cos θ ≥ MIN_SAMPLED_COS_THETA.
+            let edge = 0.5 * MIN_SAMPLED_COS_THETA;
+            if (p.x - 0.5).abs() < edge {
+                p.x = if high { 0.5 + edge } else { 0.5 - edge };
+                density = quadtree::square_density(self.nodes, self.root, p);
+            }
+            let direction = from_axis_frame(square_to_direction(p), self.axis);
+            let tree = density * inverse_mass / SQUARE_TO_SOLID_ANGLE;
+            let pdf = mix * self.uniform_pdf(direction) + (1.0 - mix) * tree;
+            return DirectionSample { direction, pdf };
+        }
+        let d =
+            from_axis_frame(square_to_direction(quadtree::sample_square(self.nodes, self.root, u, None).0), self.axis);
+        let c = d.dot(self.normal);
+        let direction = if self.mode == HemisphereMode::Fold && c < MIN_SAMPLED_COS_THETA {
+            // Mirrored in the tangent plane, kept just above it.
+            let mirrored = d - self.normal * (c - c.abs().max(MIN_SAMPLED_COS_THETA));
+            mirrored.normalize()
+        } else {
+            d
+        };
+        DirectionSample { direction, pdf: self.pdf(direction) }
+    }
+
+    fn pdf(&self, direction: Vec3) -> f32 {
+        let mix = if self.mode == HemisphereMode::Uniform { 1.0 } else { self.uniform_mix };
+        let tree = if mix < 1.0 { self.tree_share_pdf(direction) } else { 0.0 };
+        mix * self.uniform_pdf(direction) + (1.0 - mix) * tree
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::guide::Guide;
+    use crate::low_discrepancy::Pcg32;
+    use crate::tree::{SpatialDirectionalTree, SpatialDirectionalTreeSettings, TreeRegion};
+
+    /// E over the sampler of 1/pdf is the solid angle of the support (2π for the
+    /// folded distribution) exactly when the pdf matches the sampler everywhere: a check
+    /// that reaches the deepest, spikiest cells, where a chi-square's bins cannot.
+    #[test]
+    fn inverse_pdf_averages_to_the_hemisphere_on_spiky_trees() {
+        let settings = SpatialDirectionalTreeSettings { uniform_mix: 0.0, ..Default::default() };
+        let mut tree = SpatialDirectionalTree::new(Vec3::splat(-1.0), Vec3::ONE, settings).unwrap();
+        let normal = Vec3::new(0.3, -0.5, 0.8).normalize();
+        let region = tree.locate(Vec3::ZERO, normal).unwrap();
+        let mut rng = Pcg32::new(3, 1);
+        for _ in 0..8 {
+            let snapshot = tree.clone();
+            let d = snapshot.distribution(region);
+            for _ in 0..50_000 {
+                let s = d.sample(rng.next_vec2());
+                // Heavy-tailed targets, as Russian roulette makes them.
+                let u = rng.next_f32();
+                let target = if u < 0.01 { 1e3 } else { 0.1 };
+                tree.update_sampled(region, s.direction, target, s.pdf);
+            }
+            tree.rebuild_sampling();
+        }
+        let d = tree.distribution(region);
+        let n = 2_000_000;
+        let mut sum = 0.0f64;
+        for _ in 0..n {
+            let s = d.sample(rng.next_vec2());
+            sum += 1.0 / s.pdf as f64;
+        }
+        let mean = sum / n as f64;
+        assert!((mean / (2.0 * core::f64::consts::PI) - 1.0).abs() < 0.01, "E[1/pdf] = {mean}");
+    }
+
+    /// Records whose normals lie along world y turn the leaf's square to y; the region
+    /// then samples the half of the square above its surface, with the pdf the descent
+    /// gave, and E[1/pdf] is still the hemisphere's 2π.
+    #[test]
+    fn a_leaf_turns_to_its_normals_axis_and_samples_that_half() {
+        let settings = SpatialDirectionalTreeSettings { uniform_mix: 0.0, ..Default::default() };
+        let mut tree = SpatialDirectionalTree::new(Vec3::splat(-1.0), Vec3::ONE, settings).unwrap();
+        let region = tree.locate(Vec3::ZERO, Vec3::Y).unwrap();
+        assert_eq!(tree.leaf_axis(region.leaf), Some(2));
+        let light = Vec3::new(0.3, 0.9, -0.3).normalize();
+        let mut rng = Pcg32::new(4, 2);
+        for _ in 0..6 {
+            let snapshot = tree.clone();
+            let d = snapshot.distribution(region);
+            for _ in 0..50_000 {
+                let s = d.sample(rng.next_vec2());
+                let target = if s.direction.dot(light) > 0.995 { 100.0 } else { 0.1 };
+                tree.update_sampled(region, s.direction, target, s.pdf);
+            }
+            tree.rebuild_sampling();
+        }
+        assert_eq!(tree.leaf_axis(region.leaf), Some(1), "the square turned to the normals' axis");
+        let d = tree.distribution(region);
+        assert!(matches!(d.mode, HemisphereMode::Half { high: true, .. }), "{:?}", d.mode);
+        let n = 1_000_000;
+        let (mut sum, mut differing) = (0.0f64, 0);
+        for _ in 0..n {
+            let s = d.sample(rng.next_vec2());
+            assert!(s.direction.y > 0.0, "{} below the surface", s.direction);
+            // The pdf maps the direction back by an approximate atan2 (2e-6 rad): within
+            // that of a cell's edge it may read the neighbour.
+            differing += ((s.pdf / d.pdf(s.direction) - 1.0).abs() > 1e-3) as u32;
+            sum += 1.0 / s.pdf as f64;
+        }
+        assert!(differing * 10_000 < n, "{differing} samples whose pdf differs from pdf()");
+        let mean = sum / n as f64;
+        assert!((mean / (2.0 * core::f64::consts::PI) - 1.0).abs() < 0.01, "E[1/pdf] = {mean}");
+        assert!(d.pdf(light) > 20.0 * d.pdf(Vec3::new(-0.3, 0.9, 0.3).normalize()));
+        // The other side of the same leaf samples the other half.
+        let below = tree.distribution(TreeRegion { normal: -Vec3::Y, ..region });
+        assert!(matches!(below.mode, HemisphereMode::Half { high: false, .. } | HemisphereMode::Uniform));
+        assert!(below.sample(Vec2::new(0.3, 0.6)).direction.y < 0.0);
+    }
+}
