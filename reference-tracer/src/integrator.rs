@@ -71,6 +71,10 @@ pub struct IntegratorSettings {
     pub rr_depth: u32,
     /// Probability of sampling the guide instead of the BSDF where a guide region exists.
     pub guide_probability: f32,
+    /// Only the first this many vertices of a path use the guide (locate, sample, pdf);
+    /// deeper ones scatter by the BSDF alone and pass their targets back to the last
+    /// guided vertex, which still learns all it would.
+    pub guide_depth: u32,
     /// Whether guided paths update the guide.
     pub learn: bool,
     /// How next-event estimation picks an area light.
@@ -86,6 +90,7 @@ impl Default for IntegratorSettings {
             max_depth: 32,
             rr_depth: 4,
             guide_probability: 0.3,
+            guide_depth: u32::MAX,
             learn: true,
             light_selection: LightSelection::Power,
             environment_sampling: EnvironmentSampling::Luminance,
@@ -519,7 +524,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             let normal = shading.frame.normal;
             let delta = material.is_delta();
             let region = match self.guide {
-                Some(guide) if !delta => clock.time(|| guide.locate(point, normal)),
+                Some(guide) if !delta && depth < settings.guide_depth => clock.time(|| guide.locate(point, normal)),
                 _ => None,
             };
             if learning && !delta && !self.carries_path {

@@ -14,6 +14,7 @@ pub mod cli;
 pub mod color;
 pub mod directional_guide;
 pub mod environment;
+pub mod film;
 #[cfg(feature = "gpu")]
 pub mod gpu;
 pub mod import;

@@ -8,6 +8,7 @@ use glam::Vec3;
 use guiding_core::{EnvTileGuide, Guide, HemisphereGrid, Intersector, LightGuide, Pcg32};
 use rayon::prelude::*;
 
+use crate::film::{Combine, Film};
 use crate::integrator::{
     EnvironmentSampling, IntegratorSettings, LightSelection, PathCounters, PathScratch, PathTracer,
 };
@@ -56,14 +57,17 @@ pub struct RenderSettings {
     /// When guided methods learn: every pass, or in doubling training iterations
     /// followed by a frozen final image.
     pub schedule: Schedule,
+    /// How the iterative schedule's iterations combine into the image.
+    pub combine: Combine,
 }
 
 /// What the passes did.
 #[derive(Clone, Debug, Default)]
 pub struct RenderStatistics {
-    /// Passes kept in the image (= samples per pixel).
+    /// Passes in the image (= samples per pixel).
     pub passes: u32,
-    /// Training passes discarded before them.
+    /// Passes that trained the guide (iterative schedule, or within `train_seconds`),
+    /// whether the image kept them or not.
     pub training_passes: u32,
     /// Seconds into the render when the last training pass ended.
     pub training_seconds: f64,
@@ -75,12 +79,12 @@ pub struct RenderStatistics {
     pub render_seconds: f64,
     /// Of which spent rebuilding guide distributions between passes.
     pub guide_rebuild_seconds: f64,
-    /// Mean radiance (RGB) of each pass's image, for error estimates.
+    /// Mean radiance (RGB) of each pass's image in the film, for error estimates.
     pub pass_means: Vec<[f64; 3]>,
 }
 
 impl RenderStatistics {
-    /// Paths per second of the passes kept in the image (after training).
+    /// Paths per second of the passes after training.
     pub fn kept_paths_per_second(&self) -> f64 {
         let paths = self.counters.paths - self.training_counters.paths;
         paths as f64 / (self.render_seconds - self.training_seconds).max(1e-9)
@@ -90,7 +94,6 @@ impl RenderStatistics {
     pub fn add_pass(&mut self, pass_sum: [f64; 3], pixels: usize, counters: PathCounters) {
         self.pass_means.push(pass_sum.map(|s| s / pixels as f64));
         self.counters = self.counters + counters;
-        self.passes += 1;
     }
 }
 
@@ -100,22 +103,16 @@ pub struct Progress<'a> {
     pub passes: u32,
     /// Seconds since the first pass started.
     pub seconds: f64,
-    /// Sum of all samples per pixel so far (divide by `passes` for the image).
-    pub film: &'a [[f64; 3]],
+    /// The samples so far.
+    pub film: &'a Film,
     /// Counters so far.
     pub counters: PathCounters,
 }
 
 impl Progress<'_> {
     /// The current image estimate.
-    pub fn image(&self, width: usize, height: usize) -> Image {
-        let scale = 1.0 / self.passes.max(1) as f64;
-        let pixels = self
-            .film
-            .iter()
-            .map(|p| Vec3::new((p[0] * scale) as f32, (p[1] * scale) as f32, (p[2] * scale) as f32))
-            .collect();
-        Image { width, height, pixels }
+    pub fn image(&self) -> Image {
+        self.film.image()
     }
 }
 
@@ -147,7 +144,7 @@ pub fn render<I: Intersector, G: Guide>(
 ) -> (Image, RenderStatistics) {
     let Learners { directions: mut guide, lights: mut light_guide, environment: mut environment_guide } = learners;
     let (width, height) = (scene.camera.width as usize, scene.camera.height as usize);
-    let mut film = vec![[0.0f64; 3]; width * height];
+    let mut film = Film::new(width, height, settings.combine);
     let mut statistics = RenderStatistics::default();
     let start = Instant::now();
     let guided = settings.integrator.method.uses_guide() && guide.is_some();
@@ -173,6 +170,7 @@ pub fn render<I: Intersector, G: Guide>(
         // Rows come back in order, so the pass sum is added up in the same order on every
         // run: renders that do not learn are reproducible to the last bit.
         let rows: Vec<(PathCounters, [f64; 3])> = film
+            .pixels_mut()
             .par_chunks_mut(width)
             .enumerate()
             .map_init(PathScratch::default, |scratch, (y, row)| {
@@ -185,8 +183,8 @@ pub fn render<I: Intersector, G: Guide>(
                     // A NaN or infinite sample would poison the pixel for good: count the
                     // path as lost instead (it never happens with valid scenes).
                     let radiance = if radiance.is_finite() { radiance } else { Vec3::ZERO };
+                    Film::add(pixel, radiance);
                     for c in 0..3 {
-                        pixel[c] += radiance[c] as f64;
                         row_sum[c] += radiance[c] as f64;
                     }
                 }
@@ -227,49 +225,73 @@ pub fn render<I: Intersector, G: Guide>(
             || settings.integrator.light_selection == LightSelection::Learned
             || learns_environment;
         let seconds = start.elapsed().as_secs_f64();
-        let discarded = match step {
-            Some(Step::Train | Step::Refit { .. }) => true,
-            Some(Step::Render) | None => learns && seconds < settings.train_seconds,
+        let keeps_training = settings.combine != Combine::Final;
+        let fate = match step {
+            Some(Step::Train) if keeps_training => PassFate::Train,
+            Some(Step::Refit { .. }) if keeps_training => PassFate::EndsIteration,
+            Some(Step::Train | Step::Refit { .. }) => PassFate::Discard,
+            Some(Step::Render) | None if learns && seconds < settings.train_seconds => PassFate::Discard,
+            Some(Step::Render) | None => PassFate::Keep,
         };
-        if end_of_pass(&mut film, &mut statistics, settings, discarded, start, &mut on_pass) {
+        if end_of_pass(&mut film, &mut statistics, settings, fate, start, &mut on_pass) {
             break;
         }
     }
-    (finished_image(&film, &statistics, width, height), statistics)
+    (film.image(), statistics)
+}
+
+/// What becomes of a finished pass.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum PassFate {
+    /// It is in the image.
+    Keep,
+    /// It trained the guide and stays in the current iteration of the image.
+    Train,
+    /// It trained the guide and ended an iteration, which joins the image by its weight.
+    EndsIteration,
+    /// It trained the guide and leaves the image, with the rest of its iteration.
+    Discard,
 }
 
 /// The bookkeeping after a pass has been added to `film` and `statistics`, shared by
-/// the CPU and GPU render loops: a training pass (`discarded`) is taken out of the film
-/// again; otherwise `on_pass` sees the state. Returns whether the budget is reached.
+/// the CPU and GPU render loops: a pass that leaves the image (`PassFate::Discard`) is
+/// taken out of the film again with the rest of its iteration; otherwise `on_pass` sees
+/// the state. Returns whether the budget is reached.
 pub(crate) fn end_of_pass(
-    film: &mut [[f64; 3]],
+    film: &mut Film,
     statistics: &mut RenderStatistics,
     settings: &RenderSettings,
-    discarded: bool,
+    fate: PassFate,
     start: Instant,
     on_pass: &mut impl FnMut(&Progress<'_>),
 ) -> bool {
     let seconds = start.elapsed().as_secs_f64();
-    if discarded {
-        film.iter_mut().for_each(|p| *p = [0.0; 3]);
-        statistics.pass_means.clear();
-        statistics.passes = 0;
+    film.end_pass();
+    if fate != PassFate::Keep {
         statistics.training_passes += 1;
         statistics.training_seconds = seconds;
         statistics.training_counters = statistics.counters;
-        return false;
     }
+    match fate {
+        PassFate::Discard => {
+            film.discard_iteration();
+            statistics.pass_means.truncate(film.passes() as usize);
+            statistics.passes = film.passes();
+            return false;
+        }
+        PassFate::EndsIteration => film.end_iteration(),
+        PassFate::Keep | PassFate::Train => {}
+    }
+    // An iteration that counts for nothing (one pass, by inverse variance) left: its
+    // passes were the last.
+    statistics.pass_means.truncate(film.passes() as usize);
+    statistics.passes = film.passes();
     on_pass(&Progress { passes: statistics.passes, seconds, film, counters: statistics.counters });
     if settings.budget.reached(statistics.passes, seconds) {
         statistics.render_seconds = seconds;
         return true;
     }
     false
-}
-
-/// The image of a finished progressive render: the film's mean over its passes.
-pub(crate) fn finished_image(film: &[[f64; 3]], statistics: &RenderStatistics, width: usize, height: usize) -> Image {
-    Progress { passes: statistics.passes, seconds: 0.0, film, counters: statistics.counters }.image(width, height)
 }
 
 /// SplitMix64's finaliser: a bijective mix in which every input bit affects every output bit.

@@ -126,6 +126,7 @@ fn cornell_renders_the_same_with_either_intersector() {
             seed: 9,
             train_seconds: 0.0,
             schedule: reference_tracer::schedule::Schedule::Online,
+            combine: reference_tracer::film::Combine::default(),
         };
         let (_, statistics) = reference_tracer::render::render(
             &prepared.scene,

@@ -168,23 +168,24 @@ fn door_means_agree_across_integrators_and_update_rules() {
     assert_means_agree(&support::repository_scene("door", 32, 24), 600, 256, 512);
 }
 
-/// The tree under the iterative schedule (training iterations discarded, the final image
-/// frozen) agrees with nee, guided with and without next-event estimation.
+/// The tree under the iterative schedule (training iterations combined into the image as
+/// the default says, the final one frozen) agrees with nee, guided with and without
+/// next-event estimation.
 fn assert_iterative_tree_agrees(scene: &std::path::Path, spp: u32, reference_spp: u32) {
     let reference = mean_estimate(&render_scene(scene, settings(Method::Nee), None, reference_spp, 13));
     let tree = SpatialDirectionalTreeSettings { min_split_records: 64, ..Default::default() };
-    for (i, method) in [Method::Guided, Method::GuidedNee].into_iter().enumerate() {
-        let (_, statistics) = support::render_scheduled(
-            scene,
-            settings(method),
-            Some(tree.into()),
-            spp,
-            20 + i as u64,
-            Schedule::Iterative,
-        );
+    // Guided-nee also with the guide at the first vertex only (deeper vertices pass their
+    // targets back to it).
+    let first_vertex =
+        reference_tracer::integrator::IntegratorSettings { guide_depth: 1, ..settings(Method::GuidedNee) };
+    for (i, integrator) in [settings(Method::Guided), settings(Method::GuidedNee), first_vertex].into_iter().enumerate()
+    {
+        let method = integrator.method;
+        let (_, statistics) =
+            support::render_scheduled(scene, integrator, Some(tree.into()), spp, 20 + i as u64, Schedule::Iterative);
         assert!(statistics.training_passes > 0 && statistics.passes == spp, "{statistics:?}");
         support::assert_agree(
-            &format!("{} tree iterative vs nee", method.name()),
+            &format!("{} tree iterative (guide depth {}) vs nee", method.name(), integrator.guide_depth),
             &mean_estimate(&statistics),
             &reference,
         );
@@ -221,6 +222,7 @@ fn path_continuation_targets_carry_russian_roulette() {
             seed: 4,
             train_seconds: 0.0,
             schedule: Schedule::Online,
+            combine: reference_tracer::film::Combine::default(),
         };
         prepared.render(&render, |_| {}).unwrap();
         let Some(DirectionalGuide::Tree(tree)) = &prepared.guide else { panic!("a tree guide") };

@@ -61,6 +61,7 @@ fn render(scene: &Path, device: Device, method: Method, spp: u32, seed: u64) -> 
         seed,
         train_seconds: 0.0,
         schedule: reference_tracer::schedule::Schedule::Online,
+        combine: reference_tracer::film::Combine::default(),
     };
     prepared.render(&settings, |_| {}).unwrap()
 }
@@ -117,6 +118,7 @@ fn unsupported_scenes_are_refused_with_a_reason() {
         seed: 1,
         train_seconds: 0.0,
         schedule: reference_tracer::schedule::Schedule::Online,
+        combine: reference_tracer::film::Combine::default(),
     };
     let error = prepared.render(&settings, |_| {}).expect_err("refused");
     assert!(error.contains("image environment"), "{error}");
@@ -167,6 +169,7 @@ fn render_learning(
         seed,
         train_seconds: 0.0,
         schedule: reference_tracer::schedule::Schedule::Online,
+        combine: reference_tracer::film::Combine::default(),
     };
     let (_, statistics) = prepared.render(&settings, |_| {}).unwrap();
     (statistics, prepared.guide.expect("a guide was built"))
@@ -422,6 +425,7 @@ fn gpu_learned_guide_serves_the_cpu(settings: DirectionalGuideSettings, bytes: &
         seed,
         train_seconds: 0.0,
         schedule: reference_tracer::schedule::Schedule::Online,
+        combine: reference_tracer::film::Combine::default(),
     };
     let (_, guided) = prepared.render(&render_settings, |_| {}).unwrap();
     let (_, nee) = render(&scene, Device::Cpu, Method::Nee, 192, seed + 1);
@@ -520,6 +524,7 @@ fn gpu_training_passes_are_discarded_like_the_cpus() {
         seed: 81,
         train_seconds: 0.5,
         schedule: reference_tracer::schedule::Schedule::Online,
+        combine: reference_tracer::film::Combine::default(),
     };
     let (_, statistics) = prepared.render(&settings, |_| {}).unwrap();
     assert!(statistics.training_passes > 0, "no training pass");

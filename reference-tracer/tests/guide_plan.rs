@@ -125,6 +125,7 @@ fn a_scene_of_mirrors_and_glass_gets_no_directional_guide() {
         seed: 1,
         train_seconds: 0.0,
         schedule: reference_tracer::schedule::Schedule::Online,
+        combine: reference_tracer::film::Combine::default(),
     };
     let mut prepared = prepared;
     let (image, _) = prepared.render(&settings, |_| {}).unwrap();

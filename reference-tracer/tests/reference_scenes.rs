@@ -31,6 +31,7 @@ fn render_small(path: &Path, width: u32, height: u32, spp: u32) -> Image {
         seed: 5,
         train_seconds: 0.0,
         schedule: reference_tracer::schedule::Schedule::Online,
+        combine: reference_tracer::film::Combine::default(),
     };
     let (image, _) = prepared.render(&settings, |_| {}).unwrap();
     assert!(

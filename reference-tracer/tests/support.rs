@@ -123,8 +123,14 @@ pub fn render_scheduled(
         integrator.method.uses_nee(),
     );
     let mut prepared = prepare_with_lights(scene, IntersectorChoice::default(), guide, lights).unwrap();
-    let settings =
-        RenderSettings { integrator, budget: Budget::SamplesPerPixel(spp), seed, train_seconds: 0.0, schedule };
+    let settings = RenderSettings {
+        integrator,
+        budget: Budget::SamplesPerPixel(spp),
+        seed,
+        train_seconds: 0.0,
+        schedule,
+        combine: reference_tracer::film::Combine::default(),
+    };
     prepared.render(&settings, |_| {}).unwrap()
 }
 

@@ -65,9 +65,10 @@ pub use guide_buffers::{store_learned, GpuGuide};
 use scene_buffers::SceneBuffers;
 
 use crate::environment::Sky;
+use crate::film::Film;
 use crate::integrator::{IntegratorSettings, Method, PathCounters};
 use crate::output::Image;
-use crate::render::{end_of_pass, finished_image, pass_seed, Progress, RenderSettings, RenderStatistics};
+use crate::render::{end_of_pass, pass_seed, PassFate, Progress, RenderSettings, RenderStatistics};
 use crate::scene::Scene;
 
 /// The uniform block of `tracer.wgsl` (its `Params`).
@@ -454,29 +455,36 @@ impl GpuTracer {
         mut on_pass: impl FnMut(&Progress),
     ) -> Result<(Image, RenderStatistics), String> {
         let (width, height) = (self.width as usize, self.height as usize);
-        let mut film = vec![[0.0f64; 3]; width * height];
+        let mut film = Film::new(width, height, settings.combine);
         let mut statistics = RenderStatistics::default();
         let start = Instant::now();
+        // Passes traced so far, kept or not: each gets its own seed.
+        let mut traced = 0u32;
         loop {
-            let pass = statistics.passes;
+            let pass = traced;
+            traced += 1;
             let (image, counters) = self.trace_pass(pass, pass_seed(settings.seed, pass))?;
             let mut sum = [0.0f64; 3];
-            for (pixel, value) in film.iter_mut().zip(&image) {
+            for (pixel, value) in film.pixels_mut().iter_mut().zip(&image) {
+                // A NaN or infinite sample counts as lost, as on the CPU.
+                let v = [value[0], value[1], value[2]].map(|c| if c.is_finite() { c } else { 0.0 });
+                Film::add(pixel, Vec3::from_array(v));
                 for c in 0..3 {
-                    // A NaN or infinite sample counts as lost, as on the CPU.
-                    let v = if value[c].is_finite() { value[c] as f64 } else { 0.0 };
-                    pixel[c] += v;
-                    sum[c] += v;
+                    sum[c] += v[c] as f64;
                 }
             }
             statistics.add_pass(sum, width * height, counters);
             let learns = settings.integrator.method.uses_guide() && self.params.guide[1] != 0;
-            let discarded = learns && start.elapsed().as_secs_f64() < settings.train_seconds;
-            if end_of_pass(&mut film, &mut statistics, settings, discarded, start, &mut on_pass) {
+            let fate = if learns && start.elapsed().as_secs_f64() < settings.train_seconds {
+                PassFate::Discard
+            } else {
+                PassFate::Keep
+            };
+            if end_of_pass(&mut film, &mut statistics, settings, fate, start, &mut on_pass) {
                 break;
             }
         }
-        Ok((finished_image(&film, &statistics, width, height), statistics))
+        Ok((film.image(), statistics))
     }
 
     /// Between passes: brings the leaf visit counts home, and when the volume's rule
