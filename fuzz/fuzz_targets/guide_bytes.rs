@@ -87,7 +87,7 @@ impl FuzzedGuide for SpatialDirectionalTree {
 
     fn regions(&self) -> Vec<TreeRegion> {
         let normal = Vec3::new(0.2, 0.9, -0.3).normalize();
-        (0..self.leaf_count() as u32).map(|leaf| TreeRegion { leaf, normal }).collect()
+        (0..self.leaf_count() as u32).map(|leaf| TreeRegion { leaf, normal, upper_half: false }).collect()
     }
 }
 
