@@ -86,11 +86,6 @@ impl Film {
         }
     }
 
-    /// Image width, pixels.
-    pub fn width(&self) -> usize {
-        self.width
-    }
-
     /// Passes in the image: the finished iterations that count and the current one.
     pub fn passes(&self) -> u32 {
         self.kept_passes + self.passes
