@@ -12,7 +12,8 @@ extern crate alloc;
         feature = "env",
         feature = "mixture",
         feature = "volume",
-        feature = "tree"
+        feature = "tree",
+        feature = "focal"
     )),
     allow(dead_code)
 )]
@@ -38,6 +39,8 @@ pub mod validation;
 
 #[cfg(feature = "env")]
 pub mod environment;
+#[cfg(feature = "focal")]
+pub mod focal;
 #[cfg(feature = "hemisphere")]
 pub mod hemisphere;
 #[cfg(feature = "lights")]
@@ -64,6 +67,8 @@ pub use update_rule::{blend, classify_target, IntegralEstimator, LearningRate, U
 
 #[cfg(feature = "env")]
 pub use environment::{EnvTileGuide, EnvTileGuideSettings};
+#[cfg(feature = "focal")]
+pub use focal::{FocalArrival, FocalGuide, FocalGuideSettings, FocalRecord};
 #[cfg(feature = "hemisphere")]
 pub use hemisphere::{HemisphereGrid, HemisphereGridSettings, HemisphereMapping, PatchLayout, ProbeId, ProbeSet};
 #[cfg(feature = "lights")]

@@ -8,9 +8,9 @@ use clap::{Args, Parser, Subcommand};
 use guiding_core::environment::EnvironmentTiles;
 use guiding_core::volume::SphereLayout;
 use guiding_core::{
-    EnvTileGuide, EnvTileGuideSettings, GaussianMixtureSettings, HemisphereGrid, HemisphereGridSettings,
-    HemisphereMapping, IntegralEstimator, IrradianceVolumeSettings, LearningRate, LightGuide, LightGuideSettings,
-    LightUpdateRule, PatchLayout, SpatialDirectionalTreeSettings, UpdateRule,
+    EnvTileGuide, EnvTileGuideSettings, FocalGuide, FocalGuideSettings, GaussianMixtureSettings, HemisphereGrid,
+    HemisphereGridSettings, HemisphereMapping, IntegralEstimator, IrradianceVolumeSettings, LearningRate, LightGuide,
+    LightGuideSettings, LightUpdateRule, PatchLayout, SpatialDirectionalTreeSettings, UpdateRule,
 };
 use indicatif::{ProgressBar, ProgressStyle};
 
@@ -206,6 +206,21 @@ pub struct TraceOptions {
     /// (every vertex: 1.45; 2: 1.16). The GPU tracer guides every vertex.
     #[arg(long)]
     guide_depth: Option<u32>,
+    /// Probability of aiming at the focal guide (points in space where light squeezes
+    /// through, learned from the segments that carried it) instead of the BSDF, at every
+    /// vertex of a guided method; p_guide + p_focal ≤ 1. 0 leaves it out.
+    #[arg(long, default_value_t = 0.0)]
+    p_focal: f32,
+    /// The focal guide's most boxes (its densest leaves), 1..=1024.
+    #[arg(long)]
+    focal_boxes: Option<u32>,
+    /// The focal guide's density ratio: a leaf is sampled when its density is at least
+    /// this many times the occupied mean.
+    #[arg(long)]
+    focal_ratio: Option<f32>,
+    /// The focal guide's split share: a leaf holding more of the mass splits.
+    #[arg(long)]
+    focal_split: Option<f32>,
     /// Learning rate: simple (α = 1/(1+visits)), region, exponential:ALPHA or global:EXPONENT.
     #[arg(long, default_value = "simple", value_parser = parse_learning_rate)]
     learning_rate: LearningRate,
@@ -512,6 +527,21 @@ impl TraceOptions {
         }
     }
 
+    fn focal_settings(&self) -> Result<FocalGuideSettings, String> {
+        if !(0.0..=1.0 - self.p_guide).contains(&self.p_focal) {
+            return Err(format!("--p-focal {} must be in [0, 1 − p_guide = {}]", self.p_focal, 1.0 - self.p_guide));
+        }
+        let defaults = FocalGuideSettings::default();
+        let settings = FocalGuideSettings {
+            max_boxes: self.focal_boxes.unwrap_or(defaults.max_boxes),
+            focal_ratio: self.focal_ratio.unwrap_or(defaults.focal_ratio),
+            split_share: self.focal_split.unwrap_or(defaults.split_share),
+            ..defaults
+        };
+        settings.validate().map_err(|e| format!("focal guide: {e}"))?;
+        Ok(settings)
+    }
+
     fn hemisphere_settings(&self) -> Result<HemisphereGridSettings, String> {
         if !(self.guide_mib.is_finite() && self.guide_mib > 0.0) {
             return Err(format!("--guide-mib {} must be positive", self.guide_mib));
@@ -549,6 +579,7 @@ impl TraceOptions {
             rr_depth: self.rr_depth,
             guide_probability: self.p_guide,
             guide_depth,
+            focal_probability: self.p_focal,
             learn: true,
             light_selection: plan.light_selection,
             environment_sampling: plan.environment_sampling,
@@ -636,6 +667,10 @@ pub struct Prepared {
     pub intersector: SceneIntersector,
     /// The directional guide, for guided methods.
     pub guide: Option<DirectionalGuide>,
+    /// The focal guide, built at the first render of a guided method that aims at it.
+    pub focal_guide: Option<FocalGuide>,
+    /// Its settings.
+    pub focal_settings: FocalGuideSettings,
     /// The learned light selection, when the plan asks for it and the scene has area lights.
     pub light_guide: Option<LightGuide>,
     /// The learned environment sampling, when the plan asks for it and the scene has an
@@ -723,28 +758,35 @@ impl Prepared {
         if self.device == Device::Gpu {
             return self.render_on_gpu(settings, on_pass);
         }
+        let guided = settings.integrator.method.uses_guide();
+        if guided && settings.integrator.focal_probability > 0.0 && self.focal_guide.is_none() {
+            let (low, high) = self.scene.bounds();
+            let focal = FocalGuide::new(low, high, self.focal_settings).map_err(|e| e.to_string())?;
+            self.focal_guide = Some(focal);
+        }
+        let focal = self.focal_guide.as_mut().filter(|_| guided && settings.integrator.focal_probability > 0.0);
         let lights = self.light_guide.as_mut();
         let environment = self.environment_guide.as_mut();
         let (scene, intersector) = (&self.scene, &self.intersector);
-        Ok(match self.guide.as_mut().filter(|_| settings.integrator.method.uses_guide()) {
+        Ok(match self.guide.as_mut().filter(|_| guided) {
             Some(DirectionalGuide::Hemisphere(guide)) => {
-                let learners = Learners { directions: Some(guide.as_mut()), lights, environment };
+                let learners = Learners { directions: Some(guide.as_mut()), focal, lights, environment };
                 render(scene, intersector, learners, settings, &mut on_pass)
             }
             Some(DirectionalGuide::Volume(guide)) => {
-                let learners = Learners { directions: Some(guide), lights, environment };
+                let learners = Learners { directions: Some(guide), focal, lights, environment };
                 render(scene, intersector, learners, settings, &mut on_pass)
             }
             Some(DirectionalGuide::Mixture(guide)) => {
-                let learners = Learners { directions: Some(guide), lights, environment };
+                let learners = Learners { directions: Some(guide), focal, lights, environment };
                 render(scene, intersector, learners, settings, &mut on_pass)
             }
             Some(DirectionalGuide::Tree(guide)) => {
-                let learners = Learners { directions: Some(guide), lights, environment };
+                let learners = Learners { directions: Some(guide), focal, lights, environment };
                 render(scene, intersector, learners, settings, &mut on_pass)
             }
             None => {
-                let learners: Learners<'_, HemisphereGrid> = Learners { directions: None, lights, environment };
+                let learners: Learners<'_, HemisphereGrid> = Learners { directions: None, focal, lights, environment };
                 render(scene, intersector, learners, settings, &mut on_pass)
             }
         })
@@ -869,6 +911,8 @@ pub fn prepare_with_lights(
         guide,
         light_guide,
         environment_guide,
+        focal_guide: None,
+        focal_settings: FocalGuideSettings::default(),
         plan,
         times,
         device: Device::Cpu,
@@ -1081,6 +1125,7 @@ fn run_render(args: &RenderArgs) -> Result<(), String> {
         prepare_with_lights(&args.scene, options.intersector, guide, options.light_request(args.integrator)?)?;
     resize(&mut prepared, options.resolution);
     prepared.device = options.device;
+    prepared.focal_settings = options.focal_settings()?;
     for warning in &prepared.scene.warnings {
         eprintln!("warning: {}: {warning}", args.scene.display());
     }
@@ -1209,6 +1254,7 @@ fn run_compare(args: &CompareArgs) -> Result<(), String> {
         )?;
         resize(&mut prepared, options.resolution);
         prepared.device = compared.device;
+        prepared.focal_settings = options.focal_settings()?;
         eprintln!("{name}: plan: {}", prepared.plan.describe());
         let camera = &prepared.scene.camera;
         if (reference.width, reference.height) != (camera.width as usize, camera.height as usize) {

@@ -7,8 +7,8 @@
 use glam::{Vec2, Vec3};
 use guiding_core::environment::{EnvCell, EnvSample};
 use guiding_core::{
-    DirectionalDistribution, EnvTileGuide, Guide, Hit, IntegralEstimator, Intersector, Lambertian, LightGuide, Pcg32,
-    Ray, SampledDirection, ScatteringFunction,
+    DirectionalDistribution, EnvTileGuide, FocalArrival, FocalGuide, FocalRecord, Guide, Hit, IntegralEstimator,
+    Intersector, Lambertian, LightGuide, Pcg32, Ray, SampledDirection, ScatteringFunction,
 };
 
 use crate::color::luminance;
@@ -75,6 +75,9 @@ pub struct IntegratorSettings {
     /// deeper ones scatter by the BSDF alone and pass their targets back to the last
     /// guided vertex, which still learns all it would.
     pub guide_depth: u32,
+    /// Probability of aiming at the focal guide's boxes instead (where it has any), in
+    /// [0, 1 − guide_probability]; 0 leaves focal guiding out.
+    pub focal_probability: f32,
     /// Whether guided paths update the guide.
     pub learn: bool,
     /// How next-event estimation picks an area light.
@@ -91,6 +94,7 @@ impl Default for IntegratorSettings {
             rr_depth: 4,
             guide_probability: 0.3,
             guide_depth: u32::MAX,
+            focal_probability: 0.0,
             learn: true,
             light_selection: LightSelection::Power,
             environment_sampling: EnvironmentSampling::Luminance,
@@ -237,6 +241,17 @@ enum Onward {
 #[derive(Clone, Copy, Debug)]
 pub struct LearningVertex<R> {
     region: Option<R>,
+    /// Where the direction leaves from, and how far it went (infinite when it escaped).
+    origin: Vec3,
+    length: f32,
+    /// The path's throughput (luminance) for what arrives along `direction`: the focal
+    /// guide learns the image contribution, throughput × target.
+    throughput: f32,
+    /// A uniform number for the focal guide's stratified deposits.
+    u_record: f32,
+    /// How the direction was drawn, for the focal guide's choice of its share (`None` at
+    /// a delta vertex or without a focal guide).
+    focal_arrival: Option<FocalArrival>,
     direction: Vec3,
     /// Density the direction was drawn with, per steradian (the one-sample mixture's).
     pdf: f32,
@@ -304,6 +319,8 @@ pub struct PathTracer<'a, I: Intersector, G: Guide> {
     scene: &'a Scene,
     intersector: &'a I,
     guide: Option<&'a G>,
+    /// The focal guide (guided methods with a focal probability above 0).
+    focal: Option<&'a FocalGuide>,
     /// The learned light selection, when `settings.light_selection` is `Learned`.
     light_guide: Option<&'a LightGuide>,
     /// The learned environment sampling, when `settings.environment_sampling` is `Tiles`.
@@ -329,6 +346,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         scene: &'a Scene,
         intersector: &'a I,
         guide: Option<&'a G>,
+        focal: Option<&'a FocalGuide>,
         light_guide: Option<&'a LightGuide>,
         environment_guide: Option<&'a EnvTileGuide>,
         settings: IntegratorSettings,
@@ -341,6 +359,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             (false, _) => 0.0,
         };
         let guide = if settings.method.uses_guide() { guide } else { None };
+        let focal = focal.filter(|_| settings.method.uses_guide() && settings.focal_probability > 0.0);
         let light_guide = light_guide.filter(|_| settings.light_selection == LightSelection::Learned);
         let environment_guide =
             environment_guide.filter(|_| settings.environment_sampling == EnvironmentSampling::Tiles);
@@ -350,6 +369,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             scene,
             intersector,
             guide,
+            focal,
             light_guide,
             environment_guide,
             settings,
@@ -469,20 +489,30 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         counters: &mut PathCounters,
     ) -> Vec3 {
         let settings = &self.settings;
-        let learning = settings.learn && self.guide.is_some();
+        let learning = settings.learn && (self.guide.is_some() || self.focal.is_some());
         scratch.vertices.clear();
         scratch.clock =
             GuideClock { enabled: self.guide.is_some() && counters.paths % TIMED_PATH_STRIDE == 0, nanos: 0 };
         let clock = &mut scratch.clock;
         let mut radiance = Vec3::ZERO;
         let mut throughput = Vec3::ONE;
+        // What the throughput would be had every direction been drawn from the BSDF
+        // alone: Russian roulette survives by it. A guide that aims through a gap gives
+        // the paths it sends there a small weight (its pdf is large); surviving by that
+        // weight would end nearly all of them at the next vertex and give the few left
+        // the weight back, undoing what aiming gained.
+        let mut roulette_throughput = Vec3::ONE;
         // The previous vertex: its position, the pdf of the direction it sampled, and
         // whether that direction came from a delta lobe.
         let mut previous: Option<(Vec3, f32, bool)> = None;
         counters.paths += 1;
         for depth in 0..settings.max_depth {
             counters.rays += 1;
-            let Some((hit, material)) = self.next_surface(ray, rng, counters) else {
+            let next = self.next_surface(ray, rng, counters);
+            if let (Some((hit, _)), Some(last)) = (&next, scratch.vertices.last_mut()) {
+                last.length = hit.t;
+            }
+            let Some((hit, material)) = next else {
                 if let Some(environment) = &self.scene.environment {
                     let emitted = environment.radiance(ray.direction);
                     let weight = match previous {
@@ -551,6 +581,11 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                 (Some(guide), Some(region)) => Some(clock.time(|| guide.distribution(region))),
                 _ => None,
             };
+            // The focal guide's share of the scattering here (0 where it has no boxes).
+            let focal = self.focal.filter(|f| !delta && !f.boxes().is_empty());
+            let focal_share = focal.map_or(0.0, |f| f.selection_probability(point).min(settings.focal_probability));
+            // Learning measures the boxes' share from every direction, sampled by them or not.
+            let focal = focal.filter(|_| focal_share > 0.0 || learning);
             // Next-event estimation.
             if settings.method.uses_nee() && !delta {
                 let direct = self.direct_light(
@@ -559,7 +594,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                     point,
                     geometric_normal,
                     wo,
-                    distribution.as_ref(),
+                    (distribution.as_ref(), focal_share),
                     rng,
                     clock,
                     counters,
@@ -576,46 +611,76 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             // of the p they are recorded with.
             let mut survival = 1.0;
             if depth + 1 >= settings.rr_depth {
-                survival = throughput.max_element().min(0.95);
+                survival = roulette_throughput.max_element().min(0.95);
                 if survival <= 0.0 || rng.next_f32() >= survival {
                     break;
                 }
                 throughput /= survival;
+                roulette_throughput /= survival;
             }
 
             // Choose the next direction: the guide with probability p_guide where a region
             // exists, the BSDF otherwise; weight by the mixture pdf.
             let (u_choice, u_lobe, u) = (rng.next_f32(), rng.next_f32(), rng.next_vec2());
-            let (wi, factor, pdf, sampled_delta) = if delta {
+            // `mis_pdf` is what MIS with next-event estimation weighs by: the mixture
+            // without the focal term (any function both strategies share keeps the
+            // weights summing to one), which spares a focal pdf per light sample.
+            let mut focal_arrival = None;
+            let (wi, factor, bsdf_factor, pdf, mis_pdf, sampled_delta) = if delta {
                 let Some(s) = material.sample(&shading, wo, u, u_lobe) else { break };
-                (s.wi, s.weight, s.pdf, true)
+                (s.wi, s.weight, s.weight, s.pdf, s.pdf, true)
             } else {
                 let guide_probability = if distribution.is_some() { settings.guide_probability } else { 0.0 };
-                // A direction drawn from the guide comes with its guide pdf: not evaluated twice.
-                let (wi, f, guide_pdf) = match &distribution {
-                    Some(distribution) if u_choice < guide_probability => {
+                // A direction drawn from a guide comes with that guide's pdf: not evaluated twice.
+                let (wi, f, guide_pdf, focal_pdf) = match (&distribution, focal) {
+                    (_, Some(focal)) if u_choice < focal_share && focal_share > 0.0 => {
+                        let u_point = Vec3::new(u_choice / focal_share, u.x, u.y);
+                        let Some(s) = clock.time(|| focal.sample(point, u_lobe, u_point)) else { break };
+                        (s.direction, material.eval(&shading, wo, s.direction), None, Some(s.pdf))
+                    }
+                    (Some(distribution), _) if u_choice < focal_share + guide_probability => {
                         let s = clock.time(|| distribution.sample(u));
-                        (s.direction, material.eval(&shading, wo, s.direction), Some(s.pdf))
+                        (s.direction, material.eval(&shading, wo, s.direction), Some(s.pdf), None)
                     }
                     _ => {
                         let Some(s) = material.sample(&shading, wo, u, u_lobe) else { break };
-                        (s.wi, s.weight * s.pdf, None)
+                        (s.wi, s.weight * s.pdf, None, None)
                     }
                 };
+                if f == Vec3::ZERO {
+                    break;
+                }
                 let guide_pdf = match (&distribution, guide_pdf) {
                     (Some(distribution), None) => Some(clock.time(|| distribution.pdf(wi))),
                     (_, known) => known,
                 };
-                let pdf = self.scatter_pdf(material, &shading, wo, wi, guide_pdf);
-                if !(pdf.is_finite() && pdf > 0.0) || f == Vec3::ZERO {
+                let focal_pdf = match (focal, focal_pdf) {
+                    (Some(focal), None) => Some(clock.time(|| focal.pdf(point, wi))),
+                    (_, known) => known,
+                };
+                let focal_pdf = focal_pdf.unwrap_or(0.0);
+                let bsdf_pdf = material.pdf(&shading, wo, wi);
+                let mis_pdf = self.mix_pdf(bsdf_pdf, guide_pdf, focal_share);
+                let pdf = mis_pdf + focal_share * focal_pdf;
+                if !(pdf.is_finite() && pdf > 0.0) {
                     break;
                 }
-                (wi, f / pdf, pdf, false)
+                if focal.is_some() {
+                    // The integrand is filled in once the path knows what arrived.
+                    let integrand = luminance(f);
+                    let selection = focal_share;
+                    focal_arrival = Some(FocalArrival { point, integrand, pdf, focal_pdf, bsdf_pdf, selection });
+                }
+                // Unguided, the two factors are one: nee's paths stay as they were.
+                let guided = guide_pdf.is_some() || focal_share > 0.0;
+                let bsdf_factor = if guided && bsdf_pdf > 0.0 { f / bsdf_pdf } else { f / pdf };
+                (wi, f / pdf, bsdf_factor, pdf, mis_pdf, false)
             };
             if !factor.is_finite() {
                 break;
             }
             throughput *= factor;
+            roulette_throughput *= bsdf_factor;
             // The scalar factor this vertex applies to what arrives along `wi`: fs·cos/pdf
             // and, past Russian roulette, 1/survival, exactly as the throughput has it.
             let carried = luminance(factor) / survival;
@@ -631,6 +696,11 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                 }
                 scratch.vertices.push(LearningVertex {
                     region,
+                    origin: point,
+                    length: f32::INFINITY,
+                    throughput: luminance(throughput),
+                    u_record: rng.next_f32(),
+                    focal_arrival,
                     direction: wi,
                     pdf,
                     arriving: 0.0,
@@ -638,7 +708,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                 });
             }
             ray = Ray::new(self.spawn(point, geometric_normal, wi), wi);
-            previous = Some((point, pdf, sampled_delta));
+            previous = Some((point, mis_pdf, sampled_delta));
         }
         if radiance.max_element() > 0.0 {
             counters.nonzero_paths += 1;
@@ -654,8 +724,9 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         radiance
     }
 
-    /// The pdf of scattering `wi` from `wo`: the BSDF's, mixed with the guide's density
-    /// `guide_pdf` of `wi` where a region exists.
+    /// The pdf of scattering `wi` from `wo` without the focal term: the BSDF's share
+    /// (what `focal_share` and the guide leave it), plus the guide's density `guide_pdf`
+    /// of `wi` where a region exists.
     fn scatter_pdf(
         &self,
         material: &Material,
@@ -663,14 +734,19 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         wo: Vec3,
         wi: Vec3,
         guide_pdf: Option<f32>,
+        focal_share: f32,
     ) -> f32 {
-        let bsdf_pdf = material.pdf(shading, wo, wi);
+        self.mix_pdf(material.pdf(shading, wo, wi), guide_pdf, focal_share)
+    }
+
+    /// [`scatter_pdf`](Self::scatter_pdf) from the BSDF's pdf.
+    fn mix_pdf(&self, bsdf_pdf: f32, guide_pdf: Option<f32>, focal_share: f32) -> f32 {
         match guide_pdf {
             Some(guide_pdf) => {
                 let p = self.settings.guide_probability;
-                p * guide_pdf + (1.0 - p) * bsdf_pdf
+                p * guide_pdf + (1.0 - p - focal_share) * bsdf_pdf
             }
-            None => bsdf_pdf,
+            None => (1.0 - focal_share) * bsdf_pdf,
         }
     }
 
@@ -683,7 +759,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         point: Vec3,
         geometric_normal: Vec3,
         wo: Vec3,
-        distribution: Option<&G::Distribution<'_>>,
+        (distribution, focal_share): (Option<&G::Distribution<'_>>, f32),
         rng: &mut Pcg32,
         clock: &mut GuideClock,
         counters: &mut PathCounters,
@@ -756,7 +832,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             return Vec3::ZERO;
         }
         let guide_pdf = distribution.map(|distribution| clock.time(|| distribution.pdf(wi)));
-        let weight = power_heuristic(light_pdf, self.scatter_pdf(material, shading, wo, wi, guide_pdf));
+        let weight = power_heuristic(light_pdf, self.scatter_pdf(material, shading, wo, wi, guide_pdf, focal_share));
         f * emitted * (weight * transmittance / light_pdf)
     }
 
@@ -784,7 +860,6 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
     /// Applies Eq. (1) along a finished path, last vertex first. Rejected targets are
     /// counted by the guide itself (its `stats()`).
     fn learn_from_path(&self, vertices: &[LearningVertex<G::Region>]) {
-        let Some(guide) = self.guide else { return };
         let mut next_target = 0.0f32;
         for vertex in vertices.iter().rev() {
             let onward = match vertex.onward {
@@ -793,8 +868,23 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                 Onward::End => 0.0,
             };
             let target = vertex.arriving + onward;
-            if let Some(region) = vertex.region {
+            if let (Some(region), Some(guide)) = (vertex.region, self.guide) {
                 guide.update_sampled(region, vertex.direction, target, vertex.pdf);
+            }
+            if let (Some(focal), Some(arrival)) = (self.focal, vertex.focal_arrival) {
+                focal.record_arrival(&FocalArrival { integrand: arrival.integrand * target, ..arrival });
+            }
+            if let Some(focal) = self.focal {
+                let weight = vertex.throughput * target;
+                if weight > 0.0 {
+                    let record = FocalRecord {
+                        origin: vertex.origin,
+                        direction: vertex.direction,
+                        length: vertex.length,
+                        weight,
+                    };
+                    focal.record(&record, vertex.u_record);
+                }
             }
             next_target = target;
         }

@@ -5,7 +5,7 @@
 use std::time::Instant;
 
 use glam::Vec3;
-use guiding_core::{EnvTileGuide, Guide, HemisphereGrid, Intersector, LightGuide, Pcg32};
+use guiding_core::{EnvTileGuide, FocalGuide, Guide, HemisphereGrid, Intersector, LightGuide, Pcg32};
 use rayon::prelude::*;
 
 use crate::film::{Combine, Film};
@@ -121,6 +121,8 @@ impl Progress<'_> {
 pub struct Learners<'a, G: Guide = HemisphereGrid> {
     /// The directional guide (guided methods).
     pub directions: Option<&'a mut G>,
+    /// The focal guide (guided methods with a focal probability above 0).
+    pub focal: Option<&'a mut FocalGuide>,
     /// Learned light selection (`LightSelection::Learned`).
     pub lights: Option<&'a mut LightGuide>,
     /// Learned environment sampling (`EnvironmentSampling::Tiles`).
@@ -129,7 +131,7 @@ pub struct Learners<'a, G: Guide = HemisphereGrid> {
 
 impl<G: Guide> Default for Learners<'_, G> {
     fn default() -> Self {
-        Self { directions: None, lights: None, environment: None }
+        Self { directions: None, focal: None, lights: None, environment: None }
     }
 }
 
@@ -142,12 +144,13 @@ pub fn render<I: Intersector, G: Guide>(
     settings: &RenderSettings,
     mut on_pass: impl FnMut(&Progress<'_>),
 ) -> (Image, RenderStatistics) {
-    let Learners { directions: mut guide, lights: mut light_guide, environment: mut environment_guide } = learners;
+    let Learners { directions: mut guide, mut focal, lights: mut light_guide, environment: mut environment_guide } =
+        learners;
     let (width, height) = (scene.camera.width as usize, scene.camera.height as usize);
     let mut film = Film::new(width, height, settings.combine);
     let mut statistics = RenderStatistics::default();
     let start = Instant::now();
-    let guided = settings.integrator.method.uses_guide() && guide.is_some();
+    let guided = settings.integrator.method.uses_guide() && (guide.is_some() || focal.is_some());
     let mut training = Training::new(guided && settings.schedule == Schedule::Iterative);
     // Passes traced so far, kept or not: each gets its own seed.
     let mut traced = 0u32;
@@ -162,6 +165,7 @@ pub fn render<I: Intersector, G: Guide>(
             scene,
             intersector,
             guide.as_deref(),
+            focal.as_deref(),
             light_guide.as_deref(),
             environment_guide.as_deref(),
             integrator,
@@ -207,6 +211,9 @@ pub fn render<I: Intersector, G: Guide>(
         if settings.integrator.method.uses_guide() && refits {
             if let Some(guide) = guide.as_deref_mut() {
                 guide.rebuild_sampling();
+            }
+            if let Some(focal) = focal.as_deref_mut() {
+                focal.rebuild_sampling();
             }
         }
         if settings.integrator.light_selection == LightSelection::Learned {

@@ -1,0 +1,479 @@
+//! [`FocalGuide`]: learns an octree of where light-carrying segments pass, and samples
+//! directions towards its densest leaves.
+
+use alloc::vec::Vec;
+use core::sync::atomic::AtomicU32;
+
+use glam::Vec3;
+
+use super::octree::{FocalOctree, Leaf};
+use super::settings::FocalGuideSettings;
+use crate::atomic_f32;
+use crate::distribution::DirectionSample;
+use crate::error::Error;
+use crate::update_rule::{classify_target, UpdateOutcome};
+
+/// One path segment that carried light, as the focal guide learns from it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FocalRecord {
+    /// Where the segment starts (a path vertex), world space, metres.
+    pub origin: Vec3,
+    /// Its unit direction.
+    pub direction: Vec3,
+    /// Its length to the next vertex, metres (infinite for an escaped ray: it is clipped
+    /// to the scene's cube).
+    pub length: f32,
+    /// What it brought to the image: the camera-side throughput times the radiance that
+    /// arrived along it (luminance). Zero teaches nothing.
+    pub weight: f32,
+}
+
+/// One box the sampler aims at: a focal leaf of the octree.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FocalBox {
+    /// Lower corner, world space, metres.
+    pub low: Vec3,
+    /// Upper corner.
+    pub high: Vec3,
+    /// Probability of a sampled point per m³ inside the box (its share ÷ its volume).
+    pub density: f32,
+}
+
+/// A guide that aims at the points where light squeezes through (a gap, a keyhole, a
+/// focus), the same points from every vertex: see the [module docs](super).
+///
+/// A sampled direction points from the vertex towards a point drawn uniformly in one of
+/// the focal boxes (chosen by learned mass); its density per steradian is
+/// `Σ_k density_k · ∫ t² dt` over the part of the ray inside box k, exact, so the
+/// guide mixes with a BSDF by one-sample MIS like any directional distribution.
+///
+/// ```
+/// use glam::Vec3;
+/// use guiding_core::focal::{FocalGuide, FocalGuideSettings, FocalRecord};
+///
+/// let mut guide = FocalGuide::new(Vec3::splat(-1.0), Vec3::splat(1.0), FocalGuideSettings::default()).unwrap();
+/// // Light reaches every vertex through the point (0.5, 0.5, 0.5).
+/// for i in 0..2000 {
+///     let origin = Vec3::new(-0.9, (i % 40) as f32 / 25.0 - 0.8, (i / 40) as f32 / 30.0 - 0.8);
+///     let direction = (Vec3::splat(0.5) - origin).normalize();
+///     let record = FocalRecord { origin, direction, length: 3.0, weight: 1.0 };
+///     guide.record(&record, (i as f32 * 0.618).fract());
+/// }
+/// guide.rebuild_sampling();
+/// assert!(!guide.boxes().is_empty());
+/// let from = Vec3::new(-0.9, -0.5, 0.0);
+/// let sample = guide.sample(from, 0.3, Vec3::splat(0.5)).unwrap();
+/// assert!((sample.direction - (Vec3::splat(0.5) - from).normalize()).length() < 0.1);
+/// assert!((guide.pdf(from, sample.direction) - sample.pdf).abs() <= 1e-3 * sample.pdf);
+/// ```
+pub struct FocalGuide {
+    octree: FocalOctree,
+    settings: FocalGuideSettings,
+    boxes: Vec<FocalBox>,
+    /// Cumulative probabilities of `boxes`, the last 1.
+    cdf: Vec<f32>,
+    /// The selection grid: cells per axis, the corner and the cell size; per cell the
+    /// estimated second moment of the one-sample estimator at each candidate probability
+    /// and the arrivals counted (f32 bits, learning), and the probability chosen
+    /// (sampling).
+    share_cells: [u32; 3],
+    share_low: Vec3,
+    share_cell_size: f32,
+    moments: Vec<[AtomicU32; CANDIDATES.len()]>,
+    arrivals: Vec<AtomicU32>,
+    shares: Vec<f32>,
+}
+
+/// The probabilities of aiming at the boxes that each selection cell weighs.
+pub const CANDIDATES: [f32; 7] = [0.0, 0.02, 0.05, 0.1, 0.2, 0.35, 0.5];
+
+/// Arrivals a selection cell needs before it picks a probability above 0.
+const MIN_ARRIVALS: f32 = 64.0;
+
+/// One direction a path scattered into, as the selection learns from it: what arrived
+/// and every density that drew it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FocalArrival {
+    /// The vertex, world space.
+    pub point: Vec3,
+    /// fs·cos θ × the radiance that arrived along the direction (luminance): the
+    /// integrand of the vertex's scattering integral at that direction.
+    pub integrand: f32,
+    /// The pdf the direction was drawn with (the whole mixture's), per steradian.
+    pub pdf: f32,
+    /// The focal boxes' pdf of the direction.
+    pub focal_pdf: f32,
+    /// The BSDF's own pdf of it.
+    pub bsdf_pdf: f32,
+    /// The probability of aiming at the boxes the mixture used; the rest of the mixture
+    /// (the BSDF's share) changes with it, any other component stays.
+    pub selection: f32,
+}
+
+/// The parameters `[t0, t1]` of the ray `origin + t·direction` inside the box, with
+/// `1/direction` given; empty (t0 ≥ t1) when it misses. Infinite reciprocals of zero
+/// components work: such a ray is inside the slab or never.
+fn ray_box(origin: Vec3, inverse_direction: Vec3, low: Vec3, high: Vec3) -> (f32, f32) {
+    let a = (low - origin) * inverse_direction;
+    let b = (high - origin) * inverse_direction;
+    // A NaN (0·∞: the origin on a slab's plane with the ray along it) must not win:
+    // f32::min/max return the other operand.
+    let near = a.min(b);
+    let far = a.max(b);
+    (near.x.max(near.y).max(near.z), far.x.min(far.y).min(far.z))
+}
+
+impl FocalGuide {
+    /// A guide over the box `low`..`high` (the scene's bounds) that has learned nothing
+    /// and samples nothing yet.
+    pub fn new(low: Vec3, high: Vec3, settings: FocalGuideSettings) -> Result<Self, Error> {
+        settings.validate()?;
+        if !(low.is_finite() && high.is_finite() && high.cmpge(low).all()) {
+            return Err(Error::InvalidSetting {
+                name: "bounds",
+                value: f64::NAN,
+                requirement: "finite, with high ≥ low on every axis",
+            });
+        }
+        let extent = (high - low).max(Vec3::splat(1e-6));
+        let share_cell_size = extent.max_element() / settings.share_resolution as f32;
+        let counts = (extent / share_cell_size).ceil().max(Vec3::ONE);
+        let share_cells = [counts.x as u32, counts.y as u32, counts.z as u32];
+        let cells = share_cells.iter().product::<u32>() as usize;
+        Ok(Self {
+            octree: FocalOctree::new(low, high),
+            settings,
+            boxes: Vec::new(),
+            cdf: Vec::new(),
+            share_cells,
+            share_low: low,
+            share_cell_size,
+            moments: (0..cells).map(|_| core::array::from_fn(|_| atomic_f32::new(0.0))).collect(),
+            arrivals: (0..cells).map(|_| atomic_f32::new(0.0)).collect(),
+            shares: alloc::vec![0.0; cells],
+        })
+    }
+
+    /// The selection cell holding `point` (clamped into the grid).
+    fn share_cell(&self, point: Vec3) -> Option<usize> {
+        if !point.is_finite() {
+            return None;
+        }
+        let local = ((point - self.share_low) / self.share_cell_size).max(Vec3::ZERO);
+        let [nx, ny, nz] = self.share_cells;
+        let (x, y, z) = ((local.x as u32).min(nx - 1), (local.y as u32).min(ny - 1), (local.z as u32).min(nz - 1));
+        Some((x + nx * (y + ny * z)) as usize)
+    }
+
+    /// The probability with which a vertex at `point` should aim at the boxes: of the
+    /// [`CANDIDATES`], the one whose one-sample estimator had the least second moment
+    /// over the arrivals learned around `point` (0 before enough were).
+    pub fn selection_probability(&self, point: Vec3) -> f32 {
+        self.share_cell(point).map_or(0.0, |cell| self.shares[cell])
+    }
+
+    /// Learns how well aiming at the boxes would have served the vertex of `arrival`:
+    /// for each candidate probability c, the second moment ∫ F²/p_c of the estimator
+    /// with that mixture is estimated from the direction drawn with p:
+    /// F²/(p·p_c), where p_c = p + (c − selection)·(focal_pdf − bsdf_pdf).
+    pub fn record_arrival(&self, arrival: &FocalArrival) -> UpdateOutcome {
+        let integrand = match classify_target(arrival.integrand) {
+            Ok(f) => f,
+            Err(outcome) => return outcome,
+        };
+        let densities = [arrival.pdf, arrival.focal_pdf, arrival.bsdf_pdf, arrival.selection];
+        if !densities.iter().all(|d| d.is_finite() && *d >= 0.0) || arrival.pdf <= 0.0 {
+            return UpdateOutcome::OutsideDomain;
+        }
+        let Some(cell) = self.share_cell(arrival.point) else { return UpdateOutcome::OutsideDomain };
+        atomic_f32::update(&self.arrivals[cell], |n| n + 1.0);
+        if integrand > 0.0 {
+            let square = integrand as f64 * integrand as f64 / arrival.pdf as f64;
+            for (moment, &c) in self.moments[cell].iter().zip(&CANDIDATES) {
+                let mixture = arrival.pdf as f64
+                    + (c - arrival.selection) as f64 * (arrival.focal_pdf as f64 - arrival.bsdf_pdf as f64);
+                if mixture > 0.0 {
+                    let term = (square / mixture).min(f32::MAX as f64) as f32;
+                    atomic_f32::update(moment, |m| (m + term).min(f32::MAX));
+                }
+            }
+        }
+        UpdateOutcome::Accepted
+    }
+
+    /// The settings it was built with.
+    pub fn settings(&self) -> &FocalGuideSettings {
+        &self.settings
+    }
+
+    /// The boxes sampled now (empty before anything focal was learned).
+    pub fn boxes(&self) -> &[FocalBox] {
+        &self.boxes
+    }
+
+    /// Octree nodes.
+    pub fn node_count(&self) -> usize {
+        self.octree.children.len()
+    }
+
+    /// Bytes held: octree nodes and sampling boxes.
+    pub fn memory_bytes(&self) -> usize {
+        self.octree.children.len() * 8 + self.boxes.len() * (core::mem::size_of::<FocalBox>() + 4)
+    }
+
+    /// Learns one segment: its weight × length is spread over the leaves it crosses, at
+    /// `deposits_per_segment` points stratified along it (`u` in [0, 1) places them).
+    /// Lock-free; safe from many threads during a pass.
+    pub fn record(&self, record: &FocalRecord, u: f32) -> UpdateOutcome {
+        let weight = match classify_target(record.weight) {
+            Ok(w) => w,
+            Err(outcome) => return outcome,
+        };
+        let direction = record.direction;
+        if !(record.origin.is_finite() && direction.is_finite() && (direction.length_squared() - 1.0).abs() < 1e-3)
+            || record.length.is_nan()
+            || record.length < 0.0
+        {
+            return UpdateOutcome::OutsideDomain;
+        }
+        if weight == 0.0 {
+            return UpdateOutcome::Accepted;
+        }
+        let cube_high = self.octree.low + Vec3::splat(self.octree.size);
+        let (t0, t1) = ray_box(record.origin, direction.recip(), self.octree.low, cube_high);
+        let (t0, t1) = (t0.max(0.0), t1.min(record.length));
+        if t1.is_nan() || t0.is_nan() || t1 <= t0 {
+            return UpdateOutcome::OutsideDomain;
+        }
+        let count = self.settings.deposits_per_segment;
+        let step = (t1 - t0) / count as f32;
+        let amount = weight * step;
+        let u = if (0.0..1.0).contains(&u) { u } else { 0.5 };
+        for k in 0..count {
+            let t = t0 + (k as f32 + u) * step;
+            self.octree.deposit(record.origin + direction * t, amount);
+        }
+        UpdateOutcome::Accepted
+    }
+
+    /// Refines the octree where mass gathered and rebuilds the boxes sampled: the leaves
+    /// whose density is at least `focal_ratio` times the mean over occupied leaves, the
+    /// densest `max_boxes` of them, each chosen by its mass.
+    pub fn rebuild_sampling(&mut self) {
+        // The moments were measured against the boxes of their time: older ones fade by
+        // half at every rebuild.
+        for ((share, moments), arrivals) in self.shares.iter_mut().zip(&self.moments).zip(&self.arrivals) {
+            let best = moments
+                .iter()
+                .zip(CANDIDATES)
+                .map(|(m, c)| (atomic_f32::load(m), c))
+                .fold((f32::INFINITY, 0.0), |best, (m, c)| if m < best.0 { (m, c) } else { best });
+            let seen = atomic_f32::load(arrivals);
+            *share = if seen >= MIN_ARRIVALS && best.0 > 0.0 { best.1 } else { 0.0 };
+            for m in moments {
+                atomic_f32::update(m, |m| 0.5 * m);
+            }
+            atomic_f32::update(arrivals, |n| 0.5 * n);
+        }
+        self.boxes.clear();
+        self.cdf.clear();
+        let total: f64 = self.octree.leaves().iter().map(|l| l.mass as f64).sum();
+        if !(total > 0.0 && total.is_finite()) {
+            return;
+        }
+        let s = self.settings;
+        self.octree.split_heavy_leaves((s.split_share as f64 * total) as f32, s.max_nodes, s.max_depth);
+        let leaves = self.octree.leaves();
+        let volume = |l: &Leaf| (l.size as f64).powi(3);
+        let (mass, occupied) = leaves
+            .iter()
+            .filter(|l| l.mass > 0.0)
+            .fold((0.0f64, 0.0f64), |(m, v), l| (m + l.mass as f64, v + volume(l)));
+        let threshold = s.focal_ratio as f64 * mass / occupied;
+        let mut focal: Vec<(f64, &Leaf)> = leaves
+            .iter()
+            .map(|l| (l.mass as f64 / volume(l), l))
+            .filter(|(density, l)| l.mass > 0.0 && *density >= threshold)
+            .collect();
+        focal.sort_by(|a, b| b.0.total_cmp(&a.0));
+        focal.truncate(s.max_boxes as usize);
+        let chosen: f64 = focal.iter().map(|(_, l)| l.mass as f64).sum();
+        if chosen.is_nan() || chosen <= 0.0 {
+            return;
+        }
+        let mut running = 0.0f64;
+        for (_, leaf) in &focal {
+            let share = leaf.mass as f64 / chosen;
+            running += share;
+            self.boxes.push(FocalBox {
+                low: leaf.low,
+                high: leaf.low + Vec3::splat(leaf.size),
+                density: (share / volume(leaf)) as f32,
+            });
+            self.cdf.push(running as f32);
+        }
+        if let Some(last) = self.cdf.last_mut() {
+            *last = 1.0;
+        }
+    }
+
+    /// A direction from `point` towards a point drawn in the boxes: `u_box` picks the box
+    /// (by mass), `u` the point inside it. `None` when there are no boxes or the point
+    /// drawn is `point` itself.
+    pub fn sample(&self, point: Vec3, u_box: f32, u: Vec3) -> Option<DirectionSample> {
+        let index = self.cdf.partition_point(|&c| c <= u_box).min(self.boxes.len().checked_sub(1)?);
+        let chosen = &self.boxes[index];
+        let target = chosen.low + (chosen.high - chosen.low) * u.clamp(Vec3::ZERO, Vec3::ONE);
+        let offset = target - point;
+        let distance = offset.length();
+        if !(distance > 0.0 && distance.is_finite()) {
+            return None;
+        }
+        let direction = offset / distance;
+        let pdf = self.pdf(point, direction);
+        (pdf > 0.0 && pdf.is_finite()).then_some(DirectionSample { direction, pdf })
+    }
+
+    /// Density per steradian with which [`sample`](Self::sample) draws `direction` from
+    /// `point`: Σ_k density_k · (t1³ − t0³)/3 over the ray's span [t0, t1] in box k.
+    pub fn pdf(&self, point: Vec3, direction: Vec3) -> f32 {
+        let inverse = direction.recip();
+        let mut pdf = 0.0f32;
+        for b in &self.boxes {
+            let (t0, t1) = ray_box(point, inverse, b.low, b.high);
+            let t0 = t0.max(0.0);
+            if t1 > t0 {
+                pdf += b.density * (t1 * t1 * t1 - t0 * t0 * t0) * (1.0 / 3.0);
+            }
+        }
+        pdf
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::distribution::DirectionalDistribution;
+    use crate::low_discrepancy::Pcg32;
+    use crate::validation::{chi_square_test, pdf_integral, ChiSquareSettings};
+    use glam::Vec2;
+
+    /// A guide that learned segments from all over the cube's −x side that all pass
+    /// through a small opening around `gap`.
+    fn learned_through(gap: Vec3) -> FocalGuide {
+        let mut guide = FocalGuide::new(Vec3::splat(-1.0), Vec3::splat(1.0), FocalGuideSettings::default()).unwrap();
+        let mut rng = Pcg32::new(7, 1);
+        for _ in 0..6 {
+            for _ in 0..20_000 {
+                let origin = Vec3::new(-0.95, 1.8 * rng.next_f32() - 0.9, 1.8 * rng.next_f32() - 0.9);
+                let through = gap + 0.02 * (Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - 0.5);
+                let direction = (through - origin).normalize();
+                let record = FocalRecord { origin, direction, length: f32::INFINITY, weight: 1.0 };
+                assert_eq!(guide.record(&record, rng.next_f32()), UpdateOutcome::Accepted);
+            }
+            guide.rebuild_sampling();
+        }
+        guide
+    }
+
+    /// The guide seen from one point, as a directional distribution for the shared
+    /// checks: the two extra uniforms come from a generator seeded by the two given.
+    struct FromPoint<'a> {
+        guide: &'a FocalGuide,
+        point: Vec3,
+    }
+
+    impl DirectionalDistribution for FromPoint<'_> {
+        fn sample(&self, u: Vec2) -> DirectionSample {
+            let mut rng = Pcg32::new(((u.x.to_bits() as u64) << 32) | u.y.to_bits() as u64, 3);
+            let u3 = Vec3::new(u.y, rng.next_f32(), rng.next_f32());
+            self.guide.sample(self.point, u.x, u3).unwrap_or(DirectionSample { direction: Vec3::NAN, pdf: 0.0 })
+        }
+
+        fn pdf(&self, direction: Vec3) -> f32 {
+            self.guide.pdf(self.point, direction)
+        }
+    }
+
+    #[test]
+    fn boxes_gather_at_the_opening_and_sample_by_their_exact_pdf() {
+        let gap = Vec3::new(0.3, 0.1, -0.2);
+        let guide = learned_through(gap);
+        assert!(!guide.boxes().is_empty());
+        let near = guide.boxes().iter().all(|b| (0.5 * (b.low + b.high) - gap).length() < 0.25);
+        assert!(near, "{:?}", guide.boxes());
+        let largest = guide.boxes().iter().map(|b| (b.high - b.low).x).fold(0.0, f32::max);
+        assert!(largest < 0.2, "the opening's leaves refined: {largest}");
+        // From outside the boxes, and from inside one, the pdf integrates to one and the
+        // sampler follows it.
+        let inside = 0.5 * (guide.boxes()[0].low + guide.boxes()[0].high);
+        for point in [Vec3::new(-0.9, 0.4, 0.5), inside] {
+            let pdf = |d: Vec3| guide.pdf(point, d);
+            let integral = pdf_integral(&pdf, (gap - point).normalize_or(Vec3::Z), 64, 12);
+            assert!((integral - 1.0).abs() < 2e-3, "∫ pdf = {integral} from {point}");
+            let from = FromPoint { guide: &guide, point };
+            let settings = ChiSquareSettings { samples: 200_000, ..Default::default() };
+            let report = chi_square_test(&from, (gap - point).normalize_or(Vec3::Z), &settings);
+            assert!(report.p_value > 1e-3 && report.inconsistent_samples == 0, "{report:?} from {point}");
+        }
+    }
+
+    #[test]
+    fn bad_records_and_arrivals_are_refused_and_teach_nothing() {
+        let mut guide = FocalGuide::new(Vec3::ZERO, Vec3::ONE, FocalGuideSettings::default()).unwrap();
+        let good = FocalRecord { origin: Vec3::splat(0.5), direction: Vec3::X, length: 0.3, weight: 1.0 };
+        let cases = [
+            (FocalRecord { weight: f32::NAN, ..good }, UpdateOutcome::RejectedNonFinite),
+            (FocalRecord { weight: -1.0, ..good }, UpdateOutcome::RejectedNegative),
+            (FocalRecord { direction: Vec3::splat(2.0), ..good }, UpdateOutcome::OutsideDomain),
+            (FocalRecord { origin: Vec3::NAN, ..good }, UpdateOutcome::OutsideDomain),
+            (FocalRecord { length: f32::NAN, ..good }, UpdateOutcome::OutsideDomain),
+            (FocalRecord { origin: Vec3::splat(5.0), ..good }, UpdateOutcome::OutsideDomain),
+        ];
+        for (record, outcome) in cases {
+            assert_eq!(guide.record(&record, 0.5), outcome, "{record:?}");
+        }
+        let arrival = FocalArrival {
+            point: Vec3::splat(0.5),
+            integrand: 1.0,
+            pdf: 1.0,
+            focal_pdf: 0.0,
+            bsdf_pdf: 1.0,
+            selection: 0.0,
+        };
+        assert_eq!(
+            guide.record_arrival(&FocalArrival { integrand: f32::INFINITY, ..arrival }),
+            UpdateOutcome::RejectedNonFinite
+        );
+        assert_eq!(guide.record_arrival(&FocalArrival { pdf: f32::NAN, ..arrival }), UpdateOutcome::OutsideDomain);
+        guide.rebuild_sampling();
+        assert!(guide.boxes().is_empty());
+        assert_eq!(guide.sample(Vec3::splat(0.5), 0.5, Vec3::splat(0.5)), None);
+        assert_eq!(guide.pdf(Vec3::splat(0.5), Vec3::X), 0.0);
+        assert!(FocalGuide::new(Vec3::ONE, Vec3::ZERO, FocalGuideSettings::default()).is_err());
+        let settings = FocalGuideSettings { split_share: 1.5, ..Default::default() };
+        assert!(FocalGuide::new(Vec3::ZERO, Vec3::ONE, settings).is_err());
+    }
+
+    #[test]
+    fn each_cell_aims_as_often_as_its_arrivals_say_pays() {
+        let mut guide = FocalGuide::new(Vec3::ZERO, Vec3::new(2.0, 1.0, 1.0), FocalGuideSettings::default()).unwrap();
+        let (gap_side, open_side) = (Vec3::new(0.1, 0.5, 0.5), Vec3::new(1.9, 0.5, 0.5));
+        let mut rng = Pcg32::new(3, 5);
+        for _ in 0..4000 {
+            // Drawn from the BSDF alone (selection 0), a direction is in the boxes' cone
+            // one time in fifty. Where all the light comes through that cone, aiming pays;
+            // where it arrives evenly, the BSDF alone is best.
+            let in_cone = rng.next_f32() < 0.02;
+            let (focal_pdf, bsdf_pdf) = if in_cone { (40.0, 0.3) } else { (0.0, 0.3) };
+            let base =
+                FocalArrival { point: gap_side, integrand: 0.0, pdf: bsdf_pdf, focal_pdf, bsdf_pdf, selection: 0.0 };
+            let through_gap = if in_cone { 10.0 } else { 0.0 };
+            guide.record_arrival(&FocalArrival { integrand: through_gap, ..base });
+            guide.record_arrival(&FocalArrival { point: open_side, integrand: 0.3, ..base });
+        }
+        guide.rebuild_sampling();
+        assert!(guide.selection_probability(gap_side) >= 0.35, "{}", guide.selection_probability(gap_side));
+        assert_eq!(guide.selection_probability(open_side), 0.0);
+    }
+}

@@ -1,0 +1,61 @@
+//! Configuration of a [`FocalGuide`](super::FocalGuide).
+
+use crate::error::{require, Error};
+
+/// Deepest octree level: a leaf of depth 16 spans 2⁻¹⁶ of the scene's largest side.
+pub const MAX_FOCAL_DEPTH: u32 = 16;
+
+/// Everything that shapes a focal guide.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FocalGuideSettings {
+    /// Most octree nodes (each 8 bytes of learning state plus its share of the sampling
+    /// boxes); refinement stops there.
+    pub max_nodes: u32,
+    /// Deepest octree level, in 1..=[`MAX_FOCAL_DEPTH`].
+    pub max_depth: u32,
+    /// A leaf holding more than this share of the total mass splits in eight, in (0, 1).
+    pub split_share: f32,
+    /// A leaf is focal when its density (mass per m³) is at least this many times the
+    /// mean density of the occupied leaves; only focal leaves are sampled.
+    pub focal_ratio: f32,
+    /// Most boxes sampled (the densest focal leaves): the pdf tests each one per
+    /// direction.
+    pub max_boxes: u32,
+    /// Points per recorded segment at which its mass is deposited (stratified along it).
+    pub deposits_per_segment: u32,
+    /// Cells of the selection grid along the scene's longest side (the others in
+    /// proportion): each cell learns which share of the light arriving there comes from
+    /// directions the boxes cover, and that share is its probability of aiming at them.
+    pub share_resolution: u32,
+}
+
+impl Default for FocalGuideSettings {
+    fn default() -> Self {
+        Self {
+            max_nodes: 1 << 16,
+            max_depth: MAX_FOCAL_DEPTH,
+            split_share: 1.0 / 512.0,
+            focal_ratio: 16.0,
+            max_boxes: 32,
+            deposits_per_segment: 4,
+            share_resolution: 8,
+        }
+    }
+}
+
+impl FocalGuideSettings {
+    /// Checks every field's range.
+    pub fn validate(&self) -> Result<(), Error> {
+        require(self.max_nodes >= 9, "max_nodes", self.max_nodes as f64, "at least 9 (a root and its children)")?;
+        require((1..=MAX_FOCAL_DEPTH).contains(&self.max_depth), "max_depth", self.max_depth as f64, "in 1..=16")?;
+        let share = self.split_share;
+        require(share > 0.0 && share < 1.0, "split_share", share as f64, "in (0, 1)")?;
+        let ratio = self.focal_ratio;
+        require(ratio.is_finite() && ratio >= 1.0, "focal_ratio", ratio as f64, "finite and at least 1")?;
+        require((1..=1024).contains(&self.max_boxes), "max_boxes", self.max_boxes as f64, "in 1..=1024")?;
+        let deposits = self.deposits_per_segment;
+        require((1..=64).contains(&deposits), "deposits_per_segment", deposits as f64, "in 1..=64")?;
+        let cells = self.share_resolution;
+        require((1..=64).contains(&cells), "share_resolution", cells as f64, "in 1..=64")
+    }
+}
