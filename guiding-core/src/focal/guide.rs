@@ -216,9 +216,12 @@ impl FocalGuide {
         self.octree.children.len()
     }
 
-    /// Bytes held: octree nodes and sampling boxes.
+    /// Bytes held: octree nodes, sampling boxes and the selection grid.
     pub fn memory_bytes(&self) -> usize {
-        self.octree.children.len() * 8 + self.boxes.len() * (core::mem::size_of::<FocalBox>() + 4)
+        let cell = (CANDIDATES.len() + 1) * 4 + 4;
+        self.octree.children.len() * 8
+            + self.boxes.len() * (core::mem::size_of::<FocalBox>() + 4)
+            + self.shares.len() * cell
     }
 
     /// Learns one segment: its weight × length is spread over the leaves it crosses, at
