@@ -287,7 +287,7 @@ impl FocalGuide {
         let s = self.settings;
         self.octree.split_heavy_leaves((s.split_share as f64 * total) as f32, s.max_nodes, s.max_depth);
         let leaves = self.octree.leaves();
-        let volume = |l: &Leaf| (l.size as f64).powi(3);
+        let volume = |l: &Leaf| (l.size as f64) * (l.size as f64) * (l.size as f64);
         let (mass, occupied) = leaves
             .iter()
             .filter(|l| l.mass > 0.0)
