@@ -1,6 +1,6 @@
 //! The estimators agree: a white furnace converges to Le/(1-ρ) under every integrator and
 //! light selection; on the Cornell box pt, nee and guided (every update rule, hemisphere
-//! grid, volume and mixture) give
+//! grid, volume, mixture, tree and focal guide) give
 //! per-image means within 4 standard errors of each other, and on many_lights uniform,
 //! power and learned light selection do; the errors are taken from per-pass image means.
 
@@ -196,6 +196,53 @@ fn assert_iterative_tree_agrees(scene: &std::path::Path, spp: u32, reference_spp
 fn cornell_and_door_agree_under_the_iterative_schedule() {
     assert_iterative_tree_agrees(&support::repository_scene("cornell", 32, 32), 128, 256);
     assert_iterative_tree_agrees(&support::repository_scene("door", 32, 24), 256, 512);
+}
+
+/// Focal guiding under the iterative schedule agrees with nee: guided-nee aiming at the
+/// focal boxes alone and beside a tree at the first vertex, and guided (no next-event
+/// estimation) aiming at them; each render must have learned boxes, so the focal
+/// strategy really drew directions.
+fn assert_focal_agrees(scene: &std::path::Path, spp: u32, reference_spp: u32) {
+    let reference = mean_estimate(&render_scene(scene, settings(Method::Nee), None, reference_spp, 17));
+    let tree = SpatialDirectionalTreeSettings { min_split_records: 64, ..Default::default() };
+    let focal = |method| reference_tracer::integrator::IntegratorSettings {
+        focal_probability: 0.5,
+        guide_probability: 0.0,
+        ..settings(method)
+    };
+    let beside_tree = reference_tracer::integrator::IntegratorSettings {
+        guide_probability: 0.3,
+        focal_probability: 0.5,
+        guide_depth: 1,
+        ..settings(Method::GuidedNee)
+    };
+    let cases = [
+        ("guided-nee focal", focal(Method::GuidedNee), None),
+        ("guided focal", focal(Method::Guided), None),
+        ("guided-nee focal beside a tree", beside_tree, Some(tree.into())),
+    ];
+    for (i, (name, integrator, guide)) in cases.into_iter().enumerate() {
+        let lights = LightRequest::new(Some(integrator.light_selection), Some(integrator.environment_sampling), true);
+        let mut prepared = prepare_with_lights(scene, IntersectorChoice::default(), guide, lights).unwrap();
+        let render = RenderSettings {
+            integrator,
+            budget: Budget::SamplesPerPixel(spp),
+            seed: 40 + i as u64,
+            train_seconds: 0.0,
+            schedule: Schedule::Iterative,
+            combine: reference_tracer::film::Combine::default(),
+        };
+        let (_, statistics) = prepared.render(&render, |_| {}).unwrap();
+        let boxes = prepared.focal_guide.as_ref().map_or(0, |f| f.boxes().len());
+        assert!(boxes > 0, "{name}: the focal guide learned no boxes");
+        support::assert_agree(&format!("{name} vs nee"), &mean_estimate(&statistics), &reference);
+    }
+}
+
+#[test]
+fn cornell_and_door_agree_under_focal_guiding() {
+    assert_focal_agrees(&support::repository_scene("cornell", 32, 32), 128, 256);
+    assert_focal_agrees(&support::repository_scene("door", 32, 24), 256, 512);
 }
 
 #[test]
