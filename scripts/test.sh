@@ -24,7 +24,7 @@ stage() {
 
 core_dependencies_are_glam_and_libm() {
     cargo build -p guiding-core --no-default-features
-    cargo build -p guiding-core --no-default-features --features hemisphere,lights,env,mixture,volume,tree
+    cargo build -p guiding-core --no-default-features --features hemisphere,lights,env,mixture,volume,tree,focal
     local dependencies
     dependencies=$(cargo tree -p guiding-core -e normal --prefix none --format '{p}' | awk '{print $1}' | sort -u | tr '\n' ' ')
     echo "guiding-core normal dependencies: $dependencies"
