@@ -224,6 +224,10 @@ pub struct TraceOptions {
     /// The focal guide's split share: a leaf holding more of the mass splits.
     #[arg(long)]
     focal_split: Option<f32>,
+    /// The focal guide's merge ratio: neighbouring focal leaves whose densities differ by
+    /// at most this factor become one box; 0 keeps every leaf its own box.
+    #[arg(long)]
+    focal_merge: Option<f32>,
     /// The focal guide's selection cells along the scene's longest side, 1..=64: each
     /// learns its own probability of aiming at the boxes.
     #[arg(long)]
@@ -544,6 +548,7 @@ impl TraceOptions {
             focal_ratio: self.focal_ratio.unwrap_or(defaults.focal_ratio),
             split_share: self.focal_split.unwrap_or(defaults.split_share),
             share_resolution: self.focal_cells.unwrap_or(defaults.share_resolution),
+            merge_ratio: self.focal_merge.unwrap_or(defaults.merge_ratio),
             ..defaults
         };
         settings.validate().map_err(|e| format!("focal guide: {e}"))?;
@@ -710,6 +715,9 @@ impl Prepared {
         if guide.is_some() && settings.integrator.guide_depth != u32::MAX {
             return Err("the GPU tracer guides every vertex (leave out --guide-depth)".into());
         }
+        if settings.integrator.method.uses_guide() && settings.integrator.focal_probability > 0.0 {
+            return Err("the GPU tracer has no focal guide yet (leave out --p-focal)".into());
+        }
         if let Some(DirectionalGuide::Tree(_)) = guide.as_deref() {
             return Err("the GPU tracer has no tree guide yet (--guide hemisphere, volume or mixture)".into());
         }
@@ -746,13 +754,14 @@ impl Prepared {
             .into())
     }
 
-    /// Bytes of every structure `method` learns with: the directional guide (guided
-    /// methods), the light guide and the environment guide (as built by the plan).
+    /// Bytes of every structure `method` learns with: the directional and focal guides
+    /// (guided methods), the light guide and the environment guide (as built by the plan).
     pub fn learned_bytes(&self, method: Method) -> usize {
         let directions = self.guide.as_ref().filter(|_| method.uses_guide()).map_or(0, |g| g.stats().memory_bytes);
         let lights = self.light_guide.as_ref().map_or(0, LightGuide::memory_bytes);
         let environment = self.environment_guide.as_ref().map_or(0, EnvTileGuide::memory_bytes);
-        directions + lights + environment
+        let focal = self.focal_guide.as_ref().filter(|_| method.uses_guide()).map_or(0, FocalGuide::memory_bytes);
+        directions + focal + lights + environment
     }
 
     /// Renders with the learners built (the directional guide only for guided

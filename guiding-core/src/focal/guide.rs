@@ -6,6 +6,7 @@ use core::sync::atomic::AtomicU32;
 
 use glam::Vec3;
 
+use super::merge::{merge_boxes, MassBox};
 use super::octree::{FocalOctree, Leaf};
 use super::settings::FocalGuideSettings;
 use crate::atomic_f32;
@@ -28,7 +29,7 @@ pub struct FocalRecord {
     pub weight: f32,
 }
 
-/// One box the sampler aims at: a focal leaf of the octree.
+/// One box the sampler aims at: a focal leaf of the octree, or neighbouring ones merged.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FocalBox {
     /// Lower corner, world space, metres.
@@ -266,8 +267,9 @@ impl FocalGuide {
     }
 
     /// Refines the octree where mass gathered and rebuilds the boxes sampled: the leaves
-    /// whose density is at least `focal_ratio` times the mean over occupied leaves, the
-    /// densest `max_boxes` of them, each chosen by its mass.
+    /// whose density is at least `focal_ratio` times the mean over occupied leaves, merged
+    /// where neighbours are alike (`merge_ratio`), the heaviest `max_boxes` of them, each
+    /// chosen by its mass.
     pub fn rebuild_sampling(&mut self) {
         // The moments were measured against the boxes of their time: older ones fade by
         // half at every rebuild.
@@ -305,20 +307,26 @@ impl FocalGuide {
             .filter(|(density, l)| l.mass > 0.0 && *density >= threshold)
             .collect();
         focal.sort_by(|a, b| b.0.total_cmp(&a.0));
-        focal.truncate(s.max_boxes as usize);
-        let chosen: f64 = focal.iter().map(|(_, l)| l.mass as f64).sum();
-        if chosen.is_nan() || chosen <= 0.0 {
+        let as_box = |l: &Leaf| MassBox { low: l.low, high: l.low + Vec3::splat(l.size), mass: l.mass as f64 };
+        let mut chosen: Vec<MassBox> = if s.merge_ratio > 0.0 {
+            focal.truncate(4 * s.max_boxes as usize);
+            let mut merged: Vec<MassBox> = focal.iter().map(|(_, l)| as_box(l)).collect();
+            merge_boxes(&mut merged, s.merge_ratio as f64, 1e-6 * self.octree.size);
+            merged.sort_by(|a, b| b.mass.total_cmp(&a.mass));
+            merged
+        } else {
+            focal.iter().map(|(_, l)| as_box(l)).collect()
+        };
+        chosen.truncate(s.max_boxes as usize);
+        let mass: f64 = chosen.iter().map(|b| b.mass).sum();
+        if mass.is_nan() || mass <= 0.0 {
             return;
         }
         let mut running = 0.0f64;
-        for (_, leaf) in &focal {
-            let share = leaf.mass as f64 / chosen;
+        for b in &chosen {
+            let share = b.mass / mass;
             running += share;
-            self.boxes.push(FocalBox {
-                low: leaf.low,
-                high: leaf.low + Vec3::splat(leaf.size),
-                density: (share / volume(leaf)) as f32,
-            });
+            self.boxes.push(FocalBox { low: b.low, high: b.high, density: (share / b.volume()) as f32 });
             self.cdf.push(running as f32);
         }
         if let Some(last) = self.cdf.last_mut() {

@@ -14,9 +14,12 @@
 //!   a share of the mass split in eight.
 //! - [`FocalGuide`] samples: the densest leaves (mass per volume well above the mean of
 //!   the occupied space) become a small set of boxes chosen by mass; a direction's pdf is
-//!   the exact line integral of the boxes' density, ∫ ρ(x + tω) t² dt.
+//!   the exact line integral of the boxes' density, ∫ ρ(x + tω) t² dt. Neighbouring
+//!   leaves of like density merge first ([`merge`]), so a long thin opening is a few
+//!   long boxes, not a row of many cubes.
 
 mod guide;
+mod merge;
 mod octree;
 mod settings;
 

@@ -21,6 +21,11 @@ pub struct FocalGuideSettings {
     /// Most boxes sampled (the densest focal leaves): the pdf tests each one per
     /// direction.
     pub max_boxes: u32,
+    /// Focal leaves that share a face and whose densities differ by at most this factor
+    /// merge into one box before the heaviest `max_boxes` are kept (from the densest
+    /// 4 × `max_boxes` leaves); 0 keeps every leaf its own box (the densest
+    /// `max_boxes`).
+    pub merge_ratio: f32,
     /// Points per recorded segment at which its mass is deposited (stratified along it).
     pub deposits_per_segment: u32,
     /// Cells of the selection grid along the scene's longest side (the others in
@@ -39,6 +44,7 @@ impl Default for FocalGuideSettings {
             split_share: 1.0 / 2048.0,
             focal_ratio: 16.0,
             max_boxes: 64,
+            merge_ratio: 2.0,
             deposits_per_segment: 4,
             share_resolution: 8,
         }
@@ -55,6 +61,13 @@ impl FocalGuideSettings {
         let ratio = self.focal_ratio;
         require(ratio.is_finite() && ratio >= 1.0, "focal_ratio", ratio as f64, "finite and at least 1")?;
         require((1..=1024).contains(&self.max_boxes), "max_boxes", self.max_boxes as f64, "in 1..=1024")?;
+        let merge = self.merge_ratio;
+        require(
+            merge == 0.0 || (merge.is_finite() && merge >= 1.0),
+            "merge_ratio",
+            merge as f64,
+            "0 or finite and at least 1",
+        )?;
         let deposits = self.deposits_per_segment;
         require((1..=64).contains(&deposits), "deposits_per_segment", deposits as f64, "in 1..=64")?;
         let cells = self.share_resolution;
