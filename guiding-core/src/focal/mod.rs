@@ -9,13 +9,13 @@
 //! space has no parallax: drawing a point y from the learned density and shooting
 //! towards it aims through the gap from every vertex alike.
 //!
-//! - [`FocalOctree`](octree) learns: each recorded segment adds its weight × length to
+//! - The octree (`FocalOctree`) learns: each recorded segment adds its weight × length to
 //!   the leaves it crosses (at stratified points along it); leaves that gather more than
 //!   a share of the mass split in eight.
 //! - [`FocalGuide`] samples: the densest leaves (mass per volume well above the mean of
 //!   the occupied space) become a small set of boxes chosen by mass; a direction's pdf is
 //!   the exact line integral of the boxes' density, ∫ ρ(x + tω) t² dt. Neighbouring
-//!   leaves of like density merge first ([`merge`]), so a long thin opening is a few
+//!   leaves of like density merge first, so a long thin opening is a few
 //!   long boxes, not a row of many cubes.
 
 mod guide;
