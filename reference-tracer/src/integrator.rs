@@ -252,6 +252,9 @@ pub struct LearningVertex<R> {
     /// How the direction was drawn, for the focal guide's choice of its share (`None` at
     /// a delta vertex or without a focal guide).
     focal_arrival: Option<FocalArrival>,
+    /// Whether the arrival's focal pdf is left to learning: where the mixture did not aim
+    /// at the boxes, the pdf of `direction` under them matters only if light arrived.
+    focal_pdf_pending: bool,
     direction: Vec3,
     /// Density the direction was drawn with, per steradian (the one-sample mixture's).
     pdf: f32,
@@ -625,7 +628,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             // `mis_pdf` is what MIS with next-event estimation weighs by: the mixture
             // without the focal term (any function both strategies share keeps the
             // weights summing to one), which spares a focal pdf per light sample.
-            let mut focal_arrival = None;
+            let (mut focal_arrival, mut focal_pdf_pending) = (None, false);
             let (wi, factor, bsdf_factor, pdf, mis_pdf, sampled_delta) = if delta {
                 let Some(s) = material.sample(&shading, wo, u, u_lobe) else { break };
                 (s.wi, s.weight, s.weight, s.pdf, s.pdf, true)
@@ -655,9 +658,10 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                     (_, known) => known,
                 };
                 let focal_pdf = match (focal, focal_pdf) {
-                    (Some(focal), None) => Some(clock.time(|| focal.pdf(point, wi))),
+                    (Some(focal), None) if focal_share > 0.0 => Some(clock.time(|| focal.pdf(point, wi))),
                     (_, known) => known,
                 };
+                focal_pdf_pending = focal.is_some() && focal_pdf.is_none();
                 let focal_pdf = focal_pdf.unwrap_or(0.0);
                 let bsdf_pdf = material.pdf(&shading, wo, wi);
                 let mis_pdf = self.mix_pdf(bsdf_pdf, guide_pdf, focal_share);
@@ -701,6 +705,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                     throughput: luminance(throughput),
                     u_record: rng.next_f32(),
                     focal_arrival,
+                    focal_pdf_pending,
                     direction: wi,
                     pdf,
                     arriving: 0.0,
@@ -872,7 +877,13 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                 guide.update_sampled(region, vertex.direction, target, vertex.pdf);
             }
             if let (Some(focal), Some(arrival)) = (self.focal, vertex.focal_arrival) {
-                focal.record_arrival(&FocalArrival { integrand: arrival.integrand * target, ..arrival });
+                let integrand = arrival.integrand * target;
+                let focal_pdf = if vertex.focal_pdf_pending && integrand > 0.0 {
+                    focal.pdf(arrival.point, vertex.direction)
+                } else {
+                    arrival.focal_pdf
+                };
+                focal.record_arrival(&FocalArrival { integrand, focal_pdf, ..arrival });
             }
             if let Some(focal) = self.focal {
                 let weight = vertex.throughput * target;

@@ -74,8 +74,11 @@ pub struct FocalGuide {
     octree: FocalOctree,
     settings: FocalGuideSettings,
     boxes: Vec<FocalBox>,
-    /// The bounds of every box (low, high): a ray that misses them skips the boxes.
+    /// The bounds (low, high) of every box, then of each run of [`CHUNK`] boxes (the
+    /// boxes are in Morton order of their centres, so a run is a compact cluster): a ray
+    /// that misses a run's bounds skips its boxes.
     bounds: (Vec3, Vec3),
+    chunks: Vec<(Vec3, Vec3)>,
     /// Cumulative probabilities of `boxes`, the last 1.
     cdf: Vec<f32>,
     /// The selection grid: cells per axis, the corner and the cell size; per cell the
@@ -92,6 +95,21 @@ pub struct FocalGuide {
 
 /// The probabilities of aiming at the boxes that each selection cell weighs.
 pub const CANDIDATES: [f32; 7] = [0.0, 0.02, 0.05, 0.1, 0.2, 0.35, 0.5];
+
+/// Boxes per cluster whose bounds the pdf tests first.
+const CHUNK: usize = 8;
+
+/// The Morton code (10 bits per axis, interleaved) of `p` in the unit cube.
+fn morton(p: Vec3) -> u32 {
+    let spread = |v: f32| {
+        let mut x = ((v.clamp(0.0, 1.0) * 1023.0) as u32) & 0x3ff;
+        x = (x | (x << 16)) & 0x0300_00ff;
+        x = (x | (x << 8)) & 0x0300_f00f;
+        x = (x | (x << 4)) & 0x030c_30c3;
+        (x | (x << 2)) & 0x0924_9249
+    };
+    spread(p.x) | (spread(p.y) << 1) | (spread(p.z) << 2)
+}
 
 /// Arrivals a selection cell needs before it picks a probability above 0.
 const MIN_ARRIVALS: f32 = 64.0;
@@ -151,6 +169,7 @@ impl FocalGuide {
             settings,
             boxes: Vec::new(),
             bounds: (Vec3::ZERO, Vec3::ZERO),
+            chunks: Vec::new(),
             cdf: Vec::new(),
             share_cells,
             share_low: low,
@@ -228,6 +247,7 @@ impl FocalGuide {
         let cell = (CANDIDATES.len() + 1) * 4 + 4;
         self.octree.children.len() * 8
             + self.boxes.len() * (core::mem::size_of::<FocalBox>() + 4)
+            + self.chunks.len() * core::mem::size_of::<(Vec3, Vec3)>()
             + self.shares.len() * cell
     }
 
@@ -288,6 +308,7 @@ impl FocalGuide {
         }
         self.boxes.clear();
         self.cdf.clear();
+        self.chunks.clear();
         let total: f64 = self.octree.leaves().iter().map(|l| l.mass as f64).sum();
         if !(total > 0.0 && total.is_finite()) {
             return;
@@ -322,6 +343,14 @@ impl FocalGuide {
         if mass.is_nan() || mass <= 0.0 {
             return;
         }
+        let union = |boxes: &[MassBox]| {
+            boxes.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(low, high), b| (low.min(b.low), high.max(b.high)))
+        };
+        let (low, high) = union(&chosen);
+        let scale = (high - low).max(Vec3::splat(1e-12)).recip();
+        chosen.sort_by_key(|b| morton((0.5 * (b.low + b.high) - low) * scale));
+        self.bounds = (low, high);
+        self.chunks = chosen.chunks(CHUNK).map(union).collect();
         let mut running = 0.0f64;
         for b in &chosen {
             let share = b.mass / mass;
@@ -332,10 +361,6 @@ impl FocalGuide {
         if let Some(last) = self.cdf.last_mut() {
             *last = 1.0;
         }
-        self.bounds = self
-            .boxes
-            .iter()
-            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(low, high), b| (low.min(b.low), high.max(b.high)));
     }
 
     /// A direction from `point` towards a point drawn in the boxes: `u_box` picks the box
@@ -366,11 +391,18 @@ impl FocalGuide {
             return 0.0;
         }
         let mut pdf = 0.0f32;
-        for b in &self.boxes {
-            let (t0, t1) = ray_box(point, inverse, b.low, b.high);
-            let t0 = t0.max(0.0);
-            if t1 > t0 {
-                pdf += b.density * (t1 * t1 * t1 - t0 * t0 * t0) * (1.0 / 3.0);
+        // Most directions that cross the bounds still miss most clusters.
+        for (chunk, &(low, high)) in self.boxes.chunks(CHUNK).zip(&self.chunks) {
+            let (t0, t1) = ray_box(point, inverse, low, high);
+            if t1 <= t0.max(0.0) {
+                continue;
+            }
+            for b in chunk {
+                let (t0, t1) = ray_box(point, inverse, b.low, b.high);
+                let t0 = t0.max(0.0);
+                if t1 > t0 {
+                    pdf += b.density * (t1 * t1 * t1 - t0 * t0 * t0) * (1.0 / 3.0);
+                }
             }
         }
         pdf
