@@ -78,6 +78,11 @@ pub struct IntegratorSettings {
     /// Probability of aiming at the focal guide's boxes instead (where it has any), in
     /// [0, 1 − guide_probability]; 0 leaves focal guiding out.
     pub focal_probability: f32,
+    /// Share of paths, drawn at random, that the focal guide learns from, in (0, 1]: its
+    /// records (atomic adds into shared octree leaves and selection cells, and a focal
+    /// pdf per arrival) cost more than most vertices need, and a quarter of a pass's
+    /// paths still teach it plenty.
+    pub focal_learning_share: f32,
     /// Whether guided paths update the guide.
     pub learn: bool,
     /// How next-event estimation picks an area light.
@@ -95,6 +100,7 @@ impl Default for IntegratorSettings {
             guide_probability: 0.3,
             guide_depth: u32::MAX,
             focal_probability: 0.0,
+            focal_learning_share: 0.25,
             learn: true,
             light_selection: LightSelection::Power,
             environment_sampling: EnvironmentSampling::Luminance,
@@ -719,8 +725,10 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             counters.nonzero_paths += 1;
         }
         if learning {
+            // Drawn after the path, so the share leaves the path's own numbers alone.
+            let focal_learns = self.focal.is_some() && rng.next_f32() < settings.focal_learning_share;
             let vertices = &scratch.vertices;
-            scratch.clock.time(|| self.learn_from_path(vertices));
+            scratch.clock.time(|| self.learn_from_path(vertices, focal_learns));
         }
         if scratch.clock.enabled {
             counters.timed_paths += 1;
@@ -864,7 +872,8 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
 
     /// Applies Eq. (1) along a finished path, last vertex first. Rejected targets are
     /// counted by the guide itself (its `stats()`).
-    fn learn_from_path(&self, vertices: &[LearningVertex<G::Region>]) {
+    fn learn_from_path(&self, vertices: &[LearningVertex<G::Region>], focal_learns: bool) {
+        let focal = self.focal.filter(|_| focal_learns);
         let mut next_target = 0.0f32;
         for vertex in vertices.iter().rev() {
             let onward = match vertex.onward {
@@ -876,7 +885,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             if let (Some(region), Some(guide)) = (vertex.region, self.guide) {
                 guide.update_sampled(region, vertex.direction, target, vertex.pdf);
             }
-            if let (Some(focal), Some(arrival)) = (self.focal, vertex.focal_arrival) {
+            if let (Some(focal), Some(arrival)) = (focal, vertex.focal_arrival) {
                 let integrand = arrival.integrand * target;
                 let focal_pdf = if vertex.focal_pdf_pending && integrand > 0.0 {
                     focal.pdf(arrival.point, vertex.direction)
@@ -885,7 +894,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                 };
                 focal.record_arrival(&FocalArrival { integrand, focal_pdf, ..arrival });
             }
-            if let Some(focal) = self.focal {
+            if let Some(focal) = focal {
                 let weight = vertex.throughput * target;
                 if weight > 0.0 {
                     let record = FocalRecord {

@@ -205,14 +205,17 @@ fn cornell_and_door_agree_under_the_iterative_schedule() {
 fn assert_focal_agrees(scene: &std::path::Path, spp: u32, reference_spp: u32) {
     let reference = mean_estimate(&render_scene(scene, settings(Method::Nee), None, reference_spp, 17));
     let tree = SpatialDirectionalTreeSettings { min_split_records: 64, ..Default::default() };
+    // Every path learns, so that these small renders learn boxes for sure.
     let focal = |method| reference_tracer::integrator::IntegratorSettings {
         focal_probability: 0.5,
+        focal_learning_share: 1.0,
         guide_probability: 0.0,
         ..settings(method)
     };
     let beside_tree = reference_tracer::integrator::IntegratorSettings {
         guide_probability: 0.3,
         focal_probability: 0.5,
+        focal_learning_share: 1.0,
         guide_depth: 1,
         ..settings(Method::GuidedNee)
     };
