@@ -253,7 +253,7 @@ pub struct LearningVertex<R> {
     /// The path's throughput (luminance) for what arrives along `direction`: the focal
     /// guide learns the image contribution, throughput × target.
     throughput: f32,
-    /// A uniform number for the focal guide's stratified deposits.
+    /// A uniform number for the focal guide's stratified deposits (0.5 without one).
     u_record: f32,
     /// How the direction was drawn, for the focal guide's choice of its share (`None` at
     /// a delta vertex or without a focal guide).
@@ -709,7 +709,8 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                     origin: point,
                     length: f32::INFINITY,
                     throughput: luminance(throughput),
-                    u_record: rng.next_f32(),
+                    // Drawn only for a focal guide: other guides' paths keep their numbers.
+                    u_record: if self.focal.is_some() { rng.next_f32() } else { 0.5 },
                     focal_arrival,
                     focal_pdf_pending,
                     direction: wi,
