@@ -309,7 +309,8 @@ impl FocalGuide {
         self.boxes.clear();
         self.cdf.clear();
         self.chunks.clear();
-        let total: f64 = self.octree.leaves().iter().map(|l| l.mass as f64).sum();
+        // Only leaves gather mass: the node array's sum is the leaves' without a walk.
+        let total: f64 = self.octree.mass.iter().map(|m| atomic_f32::load(m) as f64).sum();
         if !(total > 0.0 && total.is_finite()) {
             return;
         }
