@@ -505,11 +505,12 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         let clock = &mut scratch.clock;
         let mut radiance = Vec3::ZERO;
         let mut throughput = Vec3::ONE;
-        // What the throughput would be had every direction been drawn from the BSDF
-        // alone: Russian roulette survives by it. A guide that aims through a gap gives
-        // the paths it sends there a small weight (its pdf is large); surviving by that
-        // weight would end nearly all of them at the next vertex and give the few left
-        // the weight back, undoing what aiming gained.
+        // The throughput with every vertex that could aim at the focal boxes counted as
+        // if its direction came from the BSDF alone: Russian roulette survives by it.
+        // The focal guide gives the paths it sends through a gap a small weight (its
+        // pdf is large); surviving by that weight would end nearly all of them at the
+        // next vertex and give the few left the weight back, undoing what aiming gained.
+        // Without focal guiding it is the throughput itself.
         let mut roulette_throughput = Vec3::ONE;
         // The previous vertex: its position, the pdf of the direction it sampled, and
         // whether that direction came from a delta lobe.
@@ -681,9 +682,12 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                     let selection = focal_share;
                     focal_arrival = Some(FocalArrival { point, integrand, pdf, focal_pdf, bsdf_pdf, selection });
                 }
-                // Unguided, the two factors are one: nee's paths stay as they were.
-                let guided = guide_pdf.is_some() || focal_share > 0.0;
-                let bsdf_factor = if guided && bsdf_pdf > 0.0 { f / bsdf_pdf } else { f / pdf };
+                // Where the mixture cannot aim at the focal boxes the two factors are one:
+                // unguided and directionally guided paths survive as they always did (the
+                // BSDF-only rule was measured for focal guiding alone, and the GPU tracer,
+                // which has no focal guide, keeps the same rule).
+                let aims = focal_share > 0.0;
+                let bsdf_factor = if aims && bsdf_pdf > 0.0 { f / bsdf_pdf } else { f / pdf };
                 (wi, f / pdf, bsdf_factor, pdf, mis_pdf, false)
             };
             if !factor.is_finite() {

@@ -1209,9 +1209,6 @@ fn trace(@builtin(global_invocation_id) id: vec3<u32>) {
     let p_guide = params.scene.y;
     var radiance = vec3<f32>(0.0);
     var throughput = vec3<f32>(1.0);
-    // The throughput had every direction been drawn from the BSDF alone: Russian roulette
-    // survives by it, as on the CPU (a guided direction's small weight must not end it).
-    var roulette_throughput = vec3<f32>(1.0);
     var previous_point = vec3<f32>(0.0);
     var previous_pdf = 0.0;
     var previous_delta = true;
@@ -1321,10 +1318,9 @@ fn trace(@builtin(global_invocation_id) id: vec3<u32>) {
         // depended on the direction would bias what the guide learns.
         var survival = 1.0;
         if (depth + 1u >= params.rr_depth) {
-            survival = min(max(max(roulette_throughput.x, roulette_throughput.y), roulette_throughput.z), 0.95);
+            survival = min(max(max(throughput.x, throughput.y), throughput.z), 0.95);
             if (survival <= 0.0 || next_f32() >= survival) { break; }
             throughput /= survival;
-            roulette_throughput /= survival;
         }
 
         // The next direction: the guide with probability p where a probe exists, else
@@ -1335,13 +1331,11 @@ fn trace(@builtin(global_invocation_id) id: vec3<u32>) {
         var wi = vec3<f32>(0.0);
         var factor = vec3<f32>(0.0);
         var pdf = 0.0;
-        var bsdf_factor = vec3<f32>(0.0);
         if (delta) {
             let s = bsdf_sample(m, wo_local, u, u_lobe);
             if (!s.ok) { break; }
             wi = to_world(shading.frame, s.wi);
             factor = s.weight;
-            bsdf_factor = s.weight;
             pdf = s.pdf;
         } else {
             var f = vec3<f32>(0.0);
@@ -1356,17 +1350,13 @@ fn trace(@builtin(global_invocation_id) id: vec3<u32>) {
                 f = s.weight * s.pdf;
             }
             if (dot(wi, shading.geometric) <= 0.0) { break; }
-            let own_pdf = bsdf_pdf(m, wo_local, to_local(shading.frame, wi));
-            pdf = own_pdf;
+            pdf = bsdf_pdf(m, wo_local, to_local(shading.frame, wi));
             if (p > 0.0) { pdf = p * guide_pdf(probe, shading.frame.normal, wi) + (1.0 - p) * pdf; }
             if (!(pdf > 0.0 && pdf < INFINITY) || (f.x + f.y + f.z) <= 0.0) { break; }
             factor = f / pdf;
-            bsdf_factor = factor;
-            if (p > 0.0 && own_pdf > 0.0) { bsdf_factor = f / own_pdf; }
         }
         if (!(factor.x < INFINITY && factor.y < INFINITY && factor.z < INFINITY)) { break; }
         throughput *= factor;
-        roulette_throughput *= bsdf_factor;
         if (learning && count < MAX_VERTICES) {
             // A vertex without an estimate of its own passes its goal back, scaled by its
             // factor and 1/survival.
