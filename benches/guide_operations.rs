@@ -1,7 +1,8 @@
 //! Nanoseconds per guide operation on a 1,000-probe hemisphere grid over a closed box
 //! (the Cornell box's walls): locate, sample, pdf, update, estimate, rebuild; and on a
 //! learned spatial × directional tree over the same box: a render-time vertex (locate,
-//! distribution, sample, pdf) and a record.
+//! distribution, sample, pdf) and a record; and on a focal guide taught an opening in
+//! the box: its pdf of a direction (half of them drawn towards its boxes) and a sample.
 //!
 //! `cargo bench --bench guide_operations`
 
@@ -12,6 +13,7 @@ use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use glam::{Vec2, Vec3};
+use guiding_core::focal::{FocalGuide, FocalGuideSettings, FocalRecord};
 use guiding_core::{
     DirectionalDistribution, Guide, HemisphereGrid, HemisphereGridSettings, Lambertian, Pcg32, ProbeSet,
     SpatialDirectionalTree, SpatialDirectionalTreeSettings,
@@ -161,5 +163,55 @@ fn bench_tree(c: &mut Criterion) {
     );
 }
 
-criterion_group!(benches, bench, bench_tree);
+/// A focal guide taught, round after round, segments from every wall point through a
+/// slit near the box's centre (a door left ajar), then timed at the same wall points.
+fn bench_focal(c: &mut Criterion) {
+    let walls = support::box_walls();
+    let queries = ProbeSet::place_on_triangles(&walls, 4093, false).expect("queries");
+    let mut guide =
+        FocalGuide::new(Vec3::NEG_ONE, Vec3::ONE, FocalGuideSettings::default()).expect("focal guide over the box");
+    let mut rng = Pcg32::new(5, 6);
+    for _round in 0..6 {
+        for _ in 0..20 {
+            for &p in &queries.positions {
+                let slit = Vec3::new(0.1 + 0.02 * rng.next_f32(), 0.8 * rng.next_f32() - 0.4, 0.02 * rng.next_f32());
+                let direction = (slit - p).normalize_or(Vec3::X);
+                let record = FocalRecord { origin: p, direction, length: f32::INFINITY, weight: 1.0 };
+                guide.record(&record, rng.next_f32());
+            }
+        }
+        guide.rebuild_sampling();
+    }
+    let count = queries.positions.len();
+    let uniforms: Vec<(f32, Vec3)> =
+        (0..count).map(|_| (rng.next_f32(), Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()))).collect();
+    // Half towards the boxes, half uniform over the sphere (most of which miss them).
+    let directions: Vec<Vec3> = (0..count)
+        .map(|k| {
+            let (u_box, u) = uniforms[k];
+            let towards = guide.sample(queries.positions[k], u_box, u).map(|s| s.direction);
+            let z = 2.0 * u.x - 1.0;
+            let phi = core::f32::consts::TAU * u.y;
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            towards.filter(|_| k % 2 == 0).unwrap_or(Vec3::new(r * phi.cos(), r * phi.sin(), z))
+        })
+        .collect();
+    let mut i = 0usize;
+    c.bench_function("focal_pdf", |b| {
+        b.iter(|| {
+            i = (i + 1) % count;
+            black_box(guide.pdf(black_box(queries.positions[i]), black_box(directions[i])))
+        })
+    });
+    c.bench_function("focal_sample", |b| {
+        b.iter(|| {
+            i = (i + 1) % count;
+            let (u_box, u) = uniforms[i];
+            black_box(guide.sample(black_box(queries.positions[i]), black_box(u_box), black_box(u)))
+        })
+    });
+    println!("focal: {} boxes, {} octree nodes", guide.boxes().len(), guide.node_count());
+}
+
+criterion_group!(benches, bench, bench_tree, bench_focal);
 criterion_main!(benches);

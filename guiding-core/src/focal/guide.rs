@@ -6,6 +6,7 @@ use core::sync::atomic::AtomicU32;
 
 use glam::Vec3;
 
+use super::lanes::{BoxLanes, LANES};
 use super::merge::{merge_boxes, MassBox};
 use super::octree::{FocalOctree, Leaf};
 use super::settings::FocalGuideSettings;
@@ -74,11 +75,12 @@ pub struct FocalGuide {
     octree: FocalOctree,
     settings: FocalGuideSettings,
     boxes: Vec<FocalBox>,
-    /// The bounds (low, high) of every box, then of each run of [`CHUNK`] boxes (the
-    /// boxes are in Morton order of their centres, so a run is a compact cluster): a ray
-    /// that misses a run's bounds skips its boxes.
+    /// The bounds (low, high) of every box; the boxes in runs of [`LANES`] (in Morton
+    /// order of their centres, so a run is a compact cluster); and the bounds of the runs,
+    /// [`LANES`] runs to an entry: a ray that misses a run's bounds skips its boxes.
     bounds: (Vec3, Vec3),
-    chunks: Vec<(Vec3, Vec3)>,
+    box_lanes: Vec<BoxLanes>,
+    run_lanes: Vec<BoxLanes>,
     /// Cumulative probabilities of `boxes`, the last 1.
     cdf: Vec<f32>,
     /// The selection grid: cells per axis, the corner and the cell size; per cell the
@@ -95,9 +97,6 @@ pub struct FocalGuide {
 
 /// The probabilities of aiming at the boxes that each selection cell weighs.
 pub const CANDIDATES: [f32; 7] = [0.0, 0.02, 0.05, 0.1, 0.2, 0.35, 0.5];
-
-/// Boxes per cluster whose bounds the pdf tests first.
-const CHUNK: usize = 8;
 
 /// The Morton code (10 bits per axis, interleaved) of `p` in the unit cube.
 fn morton(p: Vec3) -> u32 {
@@ -169,7 +168,8 @@ impl FocalGuide {
             settings,
             boxes: Vec::new(),
             bounds: (Vec3::ZERO, Vec3::ZERO),
-            chunks: Vec::new(),
+            box_lanes: Vec::new(),
+            run_lanes: Vec::new(),
             cdf: Vec::new(),
             share_cells,
             share_low: low,
@@ -247,7 +247,7 @@ impl FocalGuide {
         let cell = (CANDIDATES.len() + 1) * 4 + 4;
         self.octree.children.len() * 8
             + self.boxes.len() * (core::mem::size_of::<FocalBox>() + 4)
-            + self.chunks.len() * core::mem::size_of::<(Vec3, Vec3)>()
+            + (self.box_lanes.len() + self.run_lanes.len()) * core::mem::size_of::<BoxLanes>()
             + self.shares.len() * cell
     }
 
@@ -308,7 +308,8 @@ impl FocalGuide {
         }
         self.boxes.clear();
         self.cdf.clear();
-        self.chunks.clear();
+        self.box_lanes.clear();
+        self.run_lanes.clear();
         // Only leaves gather mass: the node array's sum is the leaves' without a walk.
         let total: f64 = self.octree.mass.iter().map(|m| atomic_f32::load(m) as f64).sum();
         if !(total > 0.0 && total.is_finite()) {
@@ -351,7 +352,6 @@ impl FocalGuide {
         let scale = (high - low).max(Vec3::splat(1e-12)).recip();
         chosen.sort_by_key(|b| morton((0.5 * (b.low + b.high) - low) * scale));
         self.bounds = (low, high);
-        self.chunks = chosen.chunks(CHUNK).map(union).collect();
         let mut running = 0.0f64;
         for b in &chosen {
             let share = b.mass / mass;
@@ -362,6 +362,19 @@ impl FocalGuide {
         if let Some(last) = self.cdf.last_mut() {
             *last = 1.0;
         }
+        let runs: Vec<(Vec3, Vec3, f32)> = self
+            .boxes
+            .chunks(LANES)
+            .map(|run| {
+                let lanes: Vec<(Vec3, Vec3, f32)> = run.iter().map(|b| (b.low, b.high, b.density)).collect();
+                self.box_lanes.push(BoxLanes::new(&lanes));
+                let (low, high) = run
+                    .iter()
+                    .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(low, high), b| (low.min(b.low), high.max(b.high)));
+                (low, high, 1.0)
+            })
+            .collect();
+        self.run_lanes = runs.chunks(LANES).map(BoxLanes::new).collect();
     }
 
     /// A direction from `point` towards a point drawn in the boxes: `u_box` picks the box
@@ -392,18 +405,13 @@ impl FocalGuide {
             return 0.0;
         }
         let mut pdf = 0.0f32;
-        // Most directions that cross the bounds still miss most clusters.
-        for (chunk, &(low, high)) in self.boxes.chunks(CHUNK).zip(&self.chunks) {
-            let (t0, t1) = ray_box(point, inverse, low, high);
-            if t1 <= t0.max(0.0) {
-                continue;
-            }
-            for b in chunk {
-                let (t0, t1) = ray_box(point, inverse, b.low, b.high);
-                let t0 = t0.max(0.0);
-                if t1 > t0 {
-                    pdf += b.density * (t1 * t1 * t1 - t0 * t0 * t0) * (1.0 / 3.0);
-                }
+        // Most directions that cross the bounds still miss most runs.
+        for (group, runs) in self.run_lanes.iter().enumerate() {
+            let mut hit = runs.hits(point, inverse);
+            while hit != 0 {
+                let run = group * LANES + hit.trailing_zeros() as usize;
+                hit &= hit - 1;
+                pdf += self.box_lanes[run].span_integral(point, inverse);
             }
         }
         pdf

@@ -19,6 +19,7 @@
 //!   long boxes, not a row of many cubes.
 
 mod guide;
+mod lanes;
 mod merge;
 mod octree;
 mod settings;
