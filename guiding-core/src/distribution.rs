@@ -11,6 +11,44 @@ use crate::frame::Frame;
 /// the horizon, which its own pdf would call impossible.
 pub const MIN_SAMPLED_COS_THETA: f32 = 1e-5;
 
+/// `direction` mirrored across the plane orthogonal to unit `normal`.
+#[cfg(any(feature = "mixture", feature = "volume"))]
+#[inline]
+pub(crate) fn mirror(direction: Vec3, normal: Vec3) -> Vec3 {
+    (direction - 2.0 * direction.dot(normal) * normal).normalize()
+}
+
+/// A direction drawn over the whole sphere, folded onto unit `normal`'s hemisphere: one
+/// below the surface is mirrored across the tangent plane (where it would have found
+/// f = 0 and ended the path), and cos θ kept ≥ [`MIN_SAMPLED_COS_THETA`] so rounding in
+/// the mirror never leaves it below the horizon that [`folded_pdf`] calls impossible.
+#[cfg(any(feature = "mixture", feature = "volume"))]
+#[inline]
+pub(crate) fn fold_onto_hemisphere(direction: Vec3, normal: Vec3) -> Vec3 {
+    let mut direction = direction;
+    if direction.dot(normal) < 0.0 {
+        direction = mirror(direction, normal);
+    }
+    let cos_theta = direction.dot(normal);
+    if cos_theta < MIN_SAMPLED_COS_THETA {
+        direction = (direction + (MIN_SAMPLED_COS_THETA - cos_theta) * normal).normalize();
+    }
+    direction
+}
+
+/// The density of [`fold_onto_hemisphere`]'s directions, per steradian, given the sphere's
+/// density `sphere_pdf`: p(ω) + p(mirror ω) above the surface, 0 below it (and for NaN).
+/// Exact, and never below the sphere's own density where that is positive.
+#[cfg(any(feature = "mixture", feature = "volume"))]
+#[inline]
+pub(crate) fn folded_pdf(direction: Vec3, normal: Vec3, sphere_pdf: impl Fn(Vec3) -> f32) -> f32 {
+    let cos_theta = direction.dot(normal);
+    if cos_theta.is_nan() || cos_theta < 0.0 {
+        return 0.0;
+    }
+    sphere_pdf(direction) + sphere_pdf(mirror(direction, normal))
+}
+
 /// A sampled direction and the density it was drawn with.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DirectionSample {

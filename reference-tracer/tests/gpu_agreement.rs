@@ -364,16 +364,20 @@ fn the_gpu_samplers_match_guiding_cores_pdfs() {
     assert!(gpu_sampler_report((&learned).into(), leaf as u32, normal, cpu, normal).passes(0.01));
     // The mixture region that saw the most samples, binned about its sharpest lobe.
     let (_, learned) = render_with_mixture(&scene, Device::Cpu, Method::GuidedNee, 32, 65);
-    let observations = |r: usize| learned.mixture(MixtureRegion(r as u32)).observations();
+    let observations = |r: usize| learned.mixture(r).observations();
     let region = (0..learned.region_count()).max_by_key(|&r| observations(r)).unwrap();
-    let m = learned.mixture(MixtureRegion(region as u32));
+    let m = learned.mixture(region);
     let sharpest =
         (0..m.lobe_count()).max_by(|&a, &b| m.lobe(a).0.concentration().total_cmp(&m.lobe(b).0.concentration()));
     let (lobe, _) = m.lobe(sharpest.unwrap_or(0));
     eprintln!("mixture region {region}: {} samples, largest κ {}", observations(region), lobe.concentration());
     assert!(lobe.concentration() > 1.0, "the mixture learned no lobe");
-    let cpu = learned.distribution(MixtureRegion(region as u32));
-    assert!(gpu_sampler_report((&learned).into(), region as u32, Vec3::Z, cpu, lobe.mean()).passes(0.01));
+    // Folded about a normal 50° from that lobe, so the lobe stays above the surface and
+    // the fold still reaches the rest of the mixture.
+    let side = lobe.mean().cross(Vec3::new(0.3, 0.8, -0.52)).normalize();
+    let normal = (lobe.mean() + 1.2 * side).normalize();
+    let cpu = learned.distribution(MixtureRegion { index: region as u32, normal });
+    assert!(gpu_sampler_report((&learned).into(), region as u32, normal, cpu, lobe.mean()).passes(0.01));
 }
 
 /// Mean squared relative difference of per-region totals over the regions both learned
@@ -498,9 +502,9 @@ fn gpu_and_cpu_learn_the_same_mixtures_and_the_gpus_mixture_serves_the_cpu() {
     }
     let render_with = |scene: &Path, device, seed| render_with_mixture(scene, device, Method::GuidedNee, 48, seed).1;
     let totals = |m: &GaussianMixture| {
-        (0..m.region_count() as u32)
+        (0..m.region_count())
             .map(|r| {
-                let mixture = m.mixture(MixtureRegion(r));
+                let mixture = m.mixture(r);
                 learned(mixture.observations()).then(|| mixture.total_weight() as f64)
             })
             .collect()

@@ -224,13 +224,11 @@ impl GuideAccess for GaussianMixture {
             .map(|(k, &v)| (VmfLobe::new(ENTRY_LOBE_MEANS[k], ENTRY_LOBE_CONCENTRATIONS[k]), v))
             .collect();
         let total = values.iter().map(|&v| v as f64).sum::<f64>().min(f32::MAX as f64) as f32;
-        self.set_mixture(region, VmfMixture::from_lobes(&lobes, total));
+        self.set_mixture(region.index as usize, VmfMixture::from_lobes(&lobes, total));
     }
 
     fn all_values(&self) -> Vec<f32> {
-        (0..self.region_count() as u32)
-            .flat_map(|r| self.mixture(MixtureRegion(r)).lobe_weight_statistics().to_vec())
-            .collect()
+        (0..self.region_count()).flat_map(|r| self.mixture(r).lobe_weight_statistics().to_vec()).collect()
     }
 
     fn floor(&self) -> f32 {

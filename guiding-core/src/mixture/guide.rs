@@ -10,7 +10,7 @@ use glam::{Vec2, Vec3};
 
 use crate::atomic_f32;
 use crate::cell_grid::CellGrid;
-use crate::distribution::{DirectionSample, DirectionalDistribution, UniformSphere};
+use crate::distribution::{fold_onto_hemisphere, folded_pdf, DirectionSample, DirectionalDistribution, UniformSphere};
 use crate::error::Error;
 use crate::guide::{Guide, GuideStats};
 use crate::scattering::ScatteringFunction;
@@ -23,12 +23,21 @@ use super::vmf_mixture::{VmfMixture, MAX_LOBES};
 /// Largest sample weight target/pdf a batch takes: sums of many stay finite in f32.
 const MAX_SAMPLE_WEIGHT: f64 = 1e30;
 
-/// A region of a [`GaussianMixture`]: a grid cell, or one normal-direction sixth of it.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub struct MixtureRegion(pub u32);
+/// A region of a [`GaussianMixture`] at one surface point: the mixture it samples (a
+/// grid cell, or one normal-direction sixth of it) and the normal its hemisphere folds
+/// onto.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MixtureRegion {
+    /// Index of the region's mixture, in `0..region_count()`.
+    pub index: u32,
+    /// Unit normal of the surface: sampling folds the sphere onto its side.
+    pub normal: Vec3,
+}
 
 /// Q(x, ω) ≈ S(x)·p(ω | x): per region of a grid over the scene, a vMF mixture p (up to
 /// 8 lobes) over the whole sphere and the scale S = ∫Q dω (radiance × steradian).
+/// Sampling at a surface folds the sphere onto the normal's hemisphere, as the volume
+/// does: a direction below the surface would find f = 0 and end the path.
 ///
 /// Each update computes the sample's responsibilities under the region's current
 /// mixture and adds r_k·v and r_k·v·ω (v = target/pdf) to the region's batch sums, with
@@ -70,11 +79,20 @@ pub struct GaussianMixture {
     rejected_negative: AtomicUsize,
 }
 
-/// The sampling distribution of one region: the mixture, with a share spread uniformly.
+/// The sampling distribution of one region: the mixture, with a share spread uniformly,
+/// folded onto the normal's hemisphere.
 #[derive(Clone, Copy, Debug)]
 pub struct MixtureDistribution<'a> {
     mixture: &'a VmfMixture,
     uniform_mix: f32,
+    normal: Vec3,
+}
+
+impl MixtureDistribution<'_> {
+    /// The density over the whole sphere, before folding.
+    fn sphere_pdf(&self, direction: Vec3) -> f32 {
+        (1.0 - self.uniform_mix) * self.mixture.pdf(direction) + self.uniform_mix * (0.25 / PI)
+    }
 }
 
 impl DirectionalDistribution for MixtureDistribution<'_> {
@@ -85,11 +103,12 @@ impl DirectionalDistribution for MixtureDistribution<'_> {
             let rescaled = ((u.x - self.uniform_mix) / (1.0 - self.uniform_mix)).min(1.0 - f32::EPSILON / 2.0);
             self.mixture.sample(Vec2::new(rescaled, u.y)).direction
         };
+        let direction = fold_onto_hemisphere(direction, self.normal);
         DirectionSample { direction, pdf: self.pdf(direction) }
     }
 
     fn pdf(&self, direction: Vec3) -> f32 {
-        (1.0 - self.uniform_mix) * self.mixture.pdf(direction) + self.uniform_mix * (0.25 / PI)
+        folded_pdf(direction, self.normal, |d| self.sphere_pdf(d))
     }
 }
 
@@ -141,15 +160,14 @@ impl GaussianMixture {
         self.mixtures.len()
     }
 
-    /// A region's mixture (the sampling snapshot and its statistics).
-    pub fn mixture(&self, region: MixtureRegion) -> &VmfMixture {
-        &self.mixtures[region.0 as usize]
+    /// The mixture of region `index` (the sampling snapshot and its statistics).
+    pub fn mixture(&self, index: usize) -> &VmfMixture {
+        &self.mixtures[index]
     }
 
-    /// Replaces a region's mixture (e.g. a prior, or a test's table) and drops its
-    /// pending batch.
-    pub fn set_mixture(&mut self, region: MixtureRegion, mixture: VmfMixture) {
-        let index = region.0 as usize;
+    /// Replaces the mixture of region `index` (e.g. a prior, or a test's table) and
+    /// drops its pending batch.
+    pub fn set_mixture(&mut self, index: usize, mixture: VmfMixture) {
         self.mixtures[index] = mixture;
         let stride = batch_stride(self.settings.lobes);
         self.batch[index * stride..(index + 1) * stride].iter().for_each(|w| w.store(0, Ordering::Relaxed));
@@ -304,11 +322,15 @@ impl Guide for GaussianMixture {
         } else {
             0
         };
-        Some(MixtureRegion(cell * self.settings.regions_per_cell() as u32 + side))
+        Some(MixtureRegion { index: cell * self.settings.regions_per_cell() as u32 + side, normal })
     }
 
     fn distribution(&self, region: MixtureRegion) -> MixtureDistribution<'_> {
-        MixtureDistribution { mixture: &self.mixtures[region.0 as usize], uniform_mix: self.settings.uniform_mix }
+        MixtureDistribution {
+            mixture: &self.mixtures[region.index as usize],
+            uniform_mix: self.settings.uniform_mix,
+            normal: region.normal,
+        }
     }
 
     /// Takes the direction as drawn uniformly over the sphere (pdf 1/4π).
@@ -333,7 +355,7 @@ impl Guide for GaussianMixture {
             return UpdateOutcome::OutsideDomain;
         }
         let weight = (target as f64 / pdf as f64).min(MAX_SAMPLE_WEIGHT) as f32;
-        let index = region.0 as usize;
+        let index = region.index as usize;
         let responsibility = self.mixtures[index].responsibilities(direction);
         let row = self.batch_row(index);
         atomic_f32::increment_saturating(&row[0]);
@@ -356,7 +378,7 @@ impl Guide for GaussianMixture {
         bsdf: &S,
         u: Vec2,
     ) -> f32 {
-        let mixture = &self.mixtures[region.0 as usize];
+        let mixture = &self.mixtures[region.index as usize];
         let scale = mixture.total_weight();
         if scale <= 0.0 {
             return 0.0;
@@ -503,10 +525,10 @@ mod tests {
         let p = Vec3::splat(0.25);
         let sides: Vec<_> = [Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y, Vec3::Z, -Vec3::Z]
             .iter()
-            .map(|&n| guide.locate(p, n).unwrap().0)
+            .map(|&n| guide.locate(p, n).unwrap().index)
             .collect();
         assert_eq!(sides, [0, 1, 2, 3, 4, 5]);
-        assert_eq!(guide.locate(Vec3::splat(0.75), Vec3::Y), Some(MixtureRegion(7 * 6 + 2)));
+        assert_eq!(guide.locate(Vec3::splat(0.75), Vec3::Y), Some(MixtureRegion { index: 7 * 6 + 2, normal: Vec3::Y }));
         assert_eq!(guide.locate(Vec3::NAN, Vec3::Y), None);
         assert_eq!(guide.locate(p, Vec3::ZERO), None);
     }
@@ -519,7 +541,7 @@ mod tests {
             teach(&guide, region, 20_000, epoch);
             guide.rebuild_sampling();
         }
-        let mixture = guide.mixture(region);
+        let mixture = guide.mixture(region.index as usize);
         // ∫ 5·max(0, x)⁴ dω = 5·2π/5 = 2π.
         let scale = mixture.total_weight();
         assert!((scale - 2.0 * PI).abs() < 0.05 * 2.0 * PI, "S = {scale}");
@@ -542,8 +564,8 @@ mod tests {
             (LearningRate::SimpleAverage, "pool"),
         ] {
             let mut guide = guide(rate);
-            let region = MixtureRegion(0);
-            let before = *guide.mixture(region);
+            let region = MixtureRegion { index: 0, normal: Vec3::Y };
+            let before = *guide.mixture(0);
             // Two batches of constant targets 1 and 3 from uniform directions (pdf 1/4π).
             for target in [1.0f32, 3.0] {
                 let mut rng = Pcg32::new(target as u64, 1);
@@ -553,9 +575,9 @@ mod tests {
                 }
                 guide.rebuild_sampling();
             }
-            let scale = guide.mixture(region).total_weight() / (4.0 * PI);
+            let scale = guide.mixture(0).total_weight() / (4.0 * PI);
             match check {
-                "keep" => assert_eq!(guide.mixture(region).lobe(0), before.lobe(0)),
+                "keep" => assert_eq!(guide.mixture(0).lobe(0), before.lobe(0)),
                 "replace" => assert!((scale - 3.0).abs() < 1e-4, "{scale}"),
                 _ => assert!((scale - 2.0).abs() < 1e-4, "{scale}"),
             }
@@ -566,15 +588,15 @@ mod tests {
     #[test]
     fn bad_updates_are_counted_or_ignored_and_change_nothing() {
         let mut guide = guide(LearningRate::SimpleAverage);
-        let region = MixtureRegion(3);
-        let before = *guide.mixture(region);
+        let region = MixtureRegion { index: 3, normal: Vec3::Y };
+        let before = *guide.mixture(3);
         assert_eq!(guide.update_sampled(region, Vec3::X, f32::NAN, 1.0), UpdateOutcome::RejectedNonFinite);
         assert_eq!(guide.update_sampled(region, Vec3::X, -1.0, 1.0), UpdateOutcome::RejectedNegative);
         for (d, pdf) in [(Vec3::NAN, 1.0), (Vec3::ZERO, 1.0), (Vec3::X, 0.0), (Vec3::X, f32::NAN), (Vec3::X, -1.0)] {
             assert_eq!(guide.update_sampled(region, d, 1.0, pdf), UpdateOutcome::OutsideDomain);
         }
         guide.rebuild_sampling();
-        assert_eq!(*guide.mixture(region), before);
+        assert_eq!(*guide.mixture(3), before);
         let stats = guide.stats();
         assert_eq!((stats.rejected_non_finite, stats.rejected_negative, stats.accepted_updates), (1, 1, 0));
         // Huge weights saturate instead of overflowing.
@@ -584,6 +606,33 @@ mod tests {
         guide.rebuild_sampling();
         assert!(guide.validate().is_ok());
         assert!(guide.pdf(region, Vec3::Y).is_finite());
+    }
+
+    #[test]
+    fn sampling_keeps_to_the_normals_hemisphere_with_an_exact_pdf() {
+        use crate::mixture::vmf::VmfLobe;
+        use crate::validation::{chi_square_test, pdf_integral, ChiSquareSettings};
+        let mut guide = guide(LearningRate::SimpleAverage);
+        let normal = Vec3::new(0.3, 0.8, -0.52).normalize();
+        let region = guide.locate(Vec3::splat(0.25), normal).unwrap();
+        // One sharp lobe above the surface, one broad lobe mostly below it: unfolded, a
+        // third of the samples would leave below the surface and end their paths.
+        let lobes =
+            [(VmfLobe::new(Vec3::new(0.5, 0.7, 0.1).normalize(), 40.0), 0.6), (VmfLobe::new(-normal, 2.0), 0.4)];
+        guide.set_mixture(region.index as usize, VmfMixture::from_lobes(&lobes, 1.0));
+        let distribution = guide.distribution(region);
+        let mut rng = Pcg32::new(4, 4);
+        for _ in 0..10_000 {
+            let s = distribution.sample(rng.next_vec2());
+            assert!(s.direction.dot(normal) > 0.0, "{:?} below the surface", s.direction);
+            assert!((s.pdf - distribution.pdf(s.direction)).abs() <= 1e-4 * s.pdf);
+        }
+        assert_eq!(distribution.pdf(-normal), 0.0);
+        assert_eq!(distribution.pdf(Vec3::NAN), 0.0);
+        let total = pdf_integral(&|d| distribution.pdf(d), normal, 64, 6);
+        assert!((total - 1.0).abs() < 1e-3, "∫ = {total}");
+        let report = chi_square_test(&distribution, normal, &ChiSquareSettings::default());
+        assert!(report.passes(0.01), "{report:?}");
     }
 
     #[test]

@@ -196,7 +196,7 @@ mod tests {
         assert_eq!(loaded.stats(), guide.stats());
         guide.rebuild_sampling();
         loaded.rebuild_sampling();
-        assert_eq!(loaded.mixture(region), guide.mixture(region));
+        assert_eq!(loaded.mixture(region.index as usize), guide.mixture(region.index as usize));
         let mut wrong = bytes.clone();
         wrong[12] = 1;
         crate::reseal_checksum(&mut wrong);

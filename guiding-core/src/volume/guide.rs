@@ -9,7 +9,7 @@ use glam::{Vec2, Vec3};
 use crate::atomic_f32;
 use crate::cdf::{build_cdf, cdf_probability, sample_cdf};
 use crate::cell_grid::CellGrid;
-use crate::distribution::{DirectionSample, DirectionalDistribution, MIN_SAMPLED_COS_THETA};
+use crate::distribution::{fold_onto_hemisphere, folded_pdf, DirectionSample, DirectionalDistribution};
 use crate::error::Error;
 use crate::guide::{Guide, GuideStats};
 use crate::scattering::ScatteringFunction;
@@ -105,34 +105,15 @@ impl VolumeDistribution<'_> {
     }
 }
 
-/// `direction` mirrored across the plane orthogonal to unit `normal`.
-#[inline]
-fn mirror(direction: Vec3, normal: Vec3) -> Vec3 {
-    (direction - 2.0 * direction.dot(normal) * normal).normalize()
-}
-
 impl DirectionalDistribution for VolumeDistribution<'_> {
     fn sample(&self, u: Vec2) -> DirectionSample {
         let (patch, rest) = sample_cdf(self.cdf, u.x);
-        let mut direction = self.layout.direction_in_patch(patch, Vec2::new(rest, u.y));
-        if direction.dot(self.normal) < 0.0 {
-            direction = mirror(direction, self.normal);
-        }
-        // Like the hemisphere samplers, keep cos θ ≥ MIN_SAMPLED_COS_THETA, so rounding in
-        // the mirror never leaves a sample below the horizon its pdf calls impossible.
-        let cos_theta = direction.dot(self.normal);
-        if cos_theta < MIN_SAMPLED_COS_THETA {
-            direction = (direction + (MIN_SAMPLED_COS_THETA - cos_theta) * self.normal).normalize();
-        }
+        let direction = fold_onto_hemisphere(self.layout.direction_in_patch(patch, Vec2::new(rest, u.y)), self.normal);
         DirectionSample { direction, pdf: self.pdf(direction) }
     }
 
     fn pdf(&self, direction: Vec3) -> f32 {
-        // Below the surface, or NaN: no density.
-        if direction.dot(self.normal).is_nan() || direction.dot(self.normal) < 0.0 {
-            return 0.0;
-        }
-        self.sphere_pdf(direction) + self.sphere_pdf(mirror(direction, self.normal))
+        folded_pdf(direction, self.normal, |d| self.sphere_pdf(d))
     }
 }
 

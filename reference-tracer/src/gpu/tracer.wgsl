@@ -811,6 +811,15 @@ fn mirror(d: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
     return normalize(d - 2.0 * dot(d, n) * n);
 }
 
+// guiding-core's fold_onto_hemisphere: below the surface mirrored, cos θ ≥ MIN_SAMPLED_COS.
+fn fold_onto_hemisphere(direction: vec3<f32>, normal: vec3<f32>) -> vec3<f32> {
+    var d = direction;
+    if (dot(d, normal) < 0.0) { d = mirror(d, normal); }
+    let cos_theta = dot(d, normal);
+    if (cos_theta < MIN_SAMPLED_COS) { d = normalize(d + (MIN_SAMPLED_COS - cos_theta) * normal); }
+    return d;
+}
+
 fn sphere_pdf(leaf: u32, d: vec3<f32>) -> f32 {
     return patch_probability(leaf, sphere_patch_of(d)) * f32(params.guide.w) / (4.0 * PI);
 }
@@ -823,10 +832,7 @@ fn volume_pdf(leaf: u32, normal: vec3<f32>, wi: vec3<f32>) -> f32 {
 
 fn volume_sample(leaf: u32, normal: vec3<f32>, u: vec2<f32>) -> GuideSample {
     let c = invert_cdf(leaf, u.x);
-    var d = sphere_direction_in_patch(c.entry, vec2<f32>(c.rest, u.y));
-    if (dot(d, normal) < 0.0) { d = mirror(d, normal); }
-    let cos_theta = dot(d, normal);
-    if (cos_theta < MIN_SAMPLED_COS) { d = normalize(d + (MIN_SAMPLED_COS - cos_theta) * normal); }
+    let d = fold_onto_hemisphere(sphere_direction_in_patch(c.entry, vec2<f32>(c.rest, u.y)), normal);
     var s: GuideSample;
     s.wi = d;
     s.pdf = volume_pdf(leaf, normal, d);
@@ -909,11 +915,17 @@ fn lobe_pdf(region: u32, k: u32, d: vec3<f32>) -> f32 {
     return lobe_word(region, k, 4u) * exp(kappa * (-0.5 * dot(m, m)));
 }
 
-// MixtureDistribution::pdf: the mixture with uniform_mix spread over the sphere.
-fn mixture_pdf(region: u32, d: vec3<f32>) -> f32 {
+// MixtureDistribution::sphere_pdf: the mixture with uniform_mix spread over the sphere.
+fn mixture_sphere_pdf(region: u32, d: vec3<f32>) -> f32 {
     var sum = 0.0;
     for (var k = 0u; k < params.guide.w; k += 1u) { sum += lobe_word(region, k, 5u) * lobe_pdf(region, k, d); }
     return (1.0 - params.scene.z) * sum + params.scene.z * (0.25 / PI);
+}
+
+// MixtureDistribution::pdf: folded onto the normal's hemisphere, as the volume's.
+fn mixture_pdf(region: u32, normal: vec3<f32>, d: vec3<f32>) -> f32 {
+    if (!(dot(d, normal) >= 0.0)) { return 0.0; }
+    return mixture_sphere_pdf(region, d) + mixture_sphere_pdf(region, mirror(d, normal));
 }
 
 // VmfLobe::sample (Jakob's w = 1 + ln(u + (1 − u)e^{−2κ})/κ).
@@ -925,7 +937,7 @@ fn lobe_sample(region: u32, k: u32, u: vec2<f32>) -> vec3<f32> {
     return normalize(to_world(frame_from_normal(lobe_mean(region, k)), local));
 }
 
-fn mixture_sample(region: u32, u: vec2<f32>) -> GuideSample {
+fn mixture_sample(region: u32, normal: vec3<f32>, u: vec2<f32>) -> GuideSample {
     let mix = params.scene.z;
     var d = vec3<f32>(0.0);
     if (u.x < mix) {
@@ -950,9 +962,10 @@ fn mixture_sample(region: u32, u: vec2<f32>) -> GuideSample {
         if (width > 0.0) { rest = clamp((x - low) / width, 0.0, 0.99999994); }
         d = lobe_sample(region, chosen, vec2<f32>(rest, u.y));
     }
+    d = fold_onto_hemisphere(d, normal);
     var s: GuideSample;
     s.wi = d;
-    s.pdf = mixture_pdf(region, d);
+    s.pdf = mixture_pdf(region, normal, d);
     return s;
 }
 
@@ -1025,13 +1038,13 @@ fn guide_locate(point: vec3<f32>, normal: vec3<f32>) -> u32 {
 // pdf per steradian of world direction `wi` at `region`, on the side of `normal`.
 fn guide_pdf(region: u32, normal: vec3<f32>, wi: vec3<f32>) -> f32 {
     if (params.volume_grid.w == GUIDE_VOLUME) { return volume_pdf(region, normal, wi); }
-    if (params.volume_grid.w == GUIDE_MIXTURE) { return mixture_pdf(region, wi); }
+    if (params.volume_grid.w == GUIDE_MIXTURE) { return mixture_pdf(region, normal, wi); }
     return grid_pdf(region, wi);
 }
 
 fn guide_sample(region: u32, normal: vec3<f32>, u: vec2<f32>) -> GuideSample {
     if (params.volume_grid.w == GUIDE_VOLUME) { return volume_sample(region, normal, u); }
-    if (params.volume_grid.w == GUIDE_MIXTURE) { return mixture_sample(region, u); }
+    if (params.volume_grid.w == GUIDE_MIXTURE) { return mixture_sample(region, normal, u); }
     return grid_sample(region, u);
 }
 
