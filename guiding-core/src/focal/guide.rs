@@ -89,7 +89,8 @@ pub struct FocalGuide {
     /// (sampling).
     share_cells: [u32; 3],
     share_low: Vec3,
-    share_cell_size: f32,
+    /// Selection cells per unit length: a multiply per lookup instead of three divides.
+    share_cells_per_unit: f32,
     moments: Vec<[AtomicU32; CANDIDATES.len()]>,
     arrivals: Vec<AtomicU32>,
     shares: Vec<f32>,
@@ -173,7 +174,7 @@ impl FocalGuide {
             cdf: Vec::new(),
             share_cells,
             share_low: low,
-            share_cell_size,
+            share_cells_per_unit: 1.0 / share_cell_size,
             moments: (0..cells).map(|_| core::array::from_fn(|_| atomic_f32::new(0.0))).collect(),
             arrivals: (0..cells).map(|_| atomic_f32::new(0.0)).collect(),
             shares: alloc::vec![0.0; cells],
@@ -185,7 +186,7 @@ impl FocalGuide {
         if !point.is_finite() {
             return None;
         }
-        let local = ((point - self.share_low) / self.share_cell_size).max(Vec3::ZERO);
+        let local = ((point - self.share_low) * self.share_cells_per_unit).max(Vec3::ZERO);
         let [nx, ny, nz] = self.share_cells;
         let (x, y, z) = ((local.x as u32).min(nx - 1), (local.y as u32).min(ny - 1), (local.z as u32).min(nz - 1));
         Some((x + nx * (y + ny * z)) as usize)
