@@ -44,8 +44,12 @@ impl BoxLanes {
             for i in 0..LANES {
                 let a = (self.low[axis][i] - o) * inv;
                 let b = (self.high[axis][i] - o) * inv;
-                near[i] = near[i].max(a.min(b));
-                far[i] = far[i].min(a.max(b));
+                // Comparisons, not f32::min/max: each is one vector instruction (minps,
+                // maxps), where f32's NaN rules cost a compare and a blend more. A NaN
+                // slab compares false everywhere and leaves near and far as they were.
+                let (entry, exit) = if a < b { (a, b) } else { (b, a) };
+                near[i] = if entry > near[i] { entry } else { near[i] };
+                far[i] = if exit < far[i] { exit } else { far[i] };
             }
         }
         (near, far)
