@@ -310,6 +310,14 @@ pub struct TraceOptions {
     /// Eq. 3: only arriving rays), or visibility (arrived / shot, times power).
     #[arg(long, default_value = "mean", value_parser = parse_light_rule)]
     light_rule: LightUpdateRule,
+    /// Next-event gate of guided methods (CPU): a grid cell whose share of arriving shadow
+    /// rays is v estimates next-event light with probability clamp(SCALE·v, 0.1, 1), and
+    /// otherwise leaves its light to the scattered direction (MIS-weighted alike, so
+    /// unbiased). 0 always shoots. 5 measured best (door 160×120, 30 s, guided-nee with
+    /// the focal guide, ÷ nee: 0.50 and 0.45 against 0.59 and 0.61 ungated, seeds 11
+    /// and 12; cornell unchanged).
+    #[arg(long, default_value_t = 5.0)]
+    nee_gate: f32,
     /// Learned selection's memory budget, MiB.
     #[arg(long, default_value_t = 1.0)]
     light_guide_mib: f64,
@@ -622,12 +630,19 @@ impl TraceOptions {
     }
 
     /// What to build for light selection under `method`.
-    fn light_request(&self, method: Method) -> Result<LightRequest, String> {
+    fn light_request(&self, method: Method, device: Device) -> Result<LightRequest, String> {
         if !(self.light_guide_mib.is_finite() && self.light_guide_mib > 0.0) {
             return Err(format!("--light-guide-mib {} must be positive", self.light_guide_mib));
         }
+        if !(self.nee_gate.is_finite() && self.nee_gate >= 0.0) {
+            return Err(format!("--nee-gate {} must be finite and at least 0", self.nee_gate));
+        }
         let budget_bytes = (self.light_guide_mib * (1 << 20) as f64) as usize;
-        let settings = LightGuideSettings { budget_bytes, rule: self.light_rule, ..Default::default() };
+        // The gate learns, so unguided methods (the baselines) and the GPU tracer (which
+        // has no light guide) shoot every shadow ray.
+        let gated = method.uses_guide() && device == Device::Cpu;
+        let gate_scale = if gated { self.nee_gate } else { 0.0 };
+        let settings = LightGuideSettings { budget_bytes, rule: self.light_rule, gate_scale, ..Default::default() };
         settings.validate().map_err(|e| e.to_string())?;
         if !(self.env_guide_mib.is_finite() && self.env_guide_mib > 0.0) {
             return Err(format!("--env-guide-mib {} must be positive", self.env_guide_mib));
@@ -891,15 +906,19 @@ pub fn prepare_with_lights(
     let (low, high) = scene.bounds();
     let light_guide = match lights.settings {
         settings
-            if plan.light_selection == LightSelection::Learned
+            if (plan.light_selection == LightSelection::Learned || settings.gate_scale > 0.0)
                 && lights.next_event_estimation
                 && !scene.lights.is_empty() =>
         {
             let light_guide = LightGuide::new(low, high, &scene.lights.powers(), settings)
                 .map_err(|e| format!("light guide: {e}"))?;
             let [x, y, z] = light_guide.resolution();
+            let gate = match settings.gate_scale {
+                0.0 => String::new(),
+                scale => format!(", next-event gate ×{scale}"),
+            };
             plan.note(format!(
-                "light guide: {x}×{y}×{z} cells × {} lights, {} KiB",
+                "light guide: {x}×{y}×{z} cells × {} lights, {} KiB{gate}",
                 light_guide.light_count(),
                 light_guide.memory_bytes() >> 10
             ));
@@ -1147,8 +1166,12 @@ fn run_render(args: &RenderArgs) -> Result<(), String> {
         None => None,
     };
     let pool = thread_pool(options.threads)?;
-    let mut prepared =
-        prepare_with_lights(&args.scene, options.intersector, guide, options.light_request(args.integrator)?)?;
+    let mut prepared = prepare_with_lights(
+        &args.scene,
+        options.intersector,
+        guide,
+        options.light_request(args.integrator, options.device)?,
+    )?;
     resize(&mut prepared, options.resolution);
     prepared.device = options.device;
     prepared.focal_settings = options.focal_settings()?;
@@ -1276,7 +1299,7 @@ fn run_compare(args: &CompareArgs) -> Result<(), String> {
             &args.scene,
             options.intersector,
             options.directional_guide(method, run.guide)?,
-            options.light_request(method)?,
+            options.light_request(method, compared.device)?,
         )?;
         resize(&mut prepared, options.resolution);
         prepared.device = compared.device;

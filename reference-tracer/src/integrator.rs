@@ -195,6 +195,11 @@ pub struct PathCounters {
 /// than many of the calls themselves.
 pub const TIMED_PATH_STRIDE: u64 = 64;
 
+/// The next-event gate counts the shadow rays of one path in this many: its counters are
+/// shared by every thread, and a quarter of the rays judge a cell as well (cornell 128²,
+/// every path counting: training passes ≈ 15 % slower than ungated).
+const GATE_PATH_STRIDE: u64 = 4;
+
 impl PathCounters {
     /// Estimated seconds spent in guide calls over all paths, extrapolated from the
     /// timed ones.
@@ -369,7 +374,10 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         };
         let guide = if settings.method.uses_guide() { guide } else { None };
         let focal = focal.filter(|_| settings.method.uses_guide() && settings.focal_probability > 0.0);
-        let light_guide = light_guide.filter(|_| settings.light_selection == LightSelection::Learned);
+        // The light guide selects lights where selection is learned, and gates next-event
+        // estimation where its gate is on.
+        let light_guide = light_guide
+            .filter(|g| settings.light_selection == LightSelection::Learned || g.settings().gate_scale > 0.0);
         let environment_guide =
             environment_guide.filter(|_| settings.environment_sampling == EnvironmentSampling::Tiles);
         let masks = scene.has_masks();
@@ -528,7 +536,9 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                     let weight = match previous {
                         Some((from, pdf, false)) if settings.method.uses_nee() => power_heuristic(
                             pdf,
-                            self.environment_choice * self.environment_pdf(environment, from, ray.direction),
+                            self.next_event_probability(from)
+                                * self.environment_choice
+                                * self.environment_pdf(environment, from, ray.direction),
                         ),
                         _ => 1.0,
                     };
@@ -549,9 +559,11 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             // Emission from the front face.
             if material.is_emissive() && geometric_normal.dot(wo) > 0.0 {
                 let weight = match previous {
-                    Some((from, pdf, false)) if settings.method.uses_nee() => {
-                        power_heuristic(pdf, self.light_pdf(hit.primitive, from, point, geometric_normal))
-                    }
+                    Some((from, pdf, false)) if settings.method.uses_nee() => power_heuristic(
+                        pdf,
+                        self.next_event_probability(from)
+                            * self.light_pdf(hit.primitive, from, point, geometric_normal),
+                    ),
                     _ => 1.0,
                 };
                 radiance += throughput * material.emission * weight;
@@ -783,6 +795,12 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         counters: &mut PathCounters,
     ) -> Vec3 {
         let (u_choice, u_select, u) = (rng.next_f32(), rng.next_f32(), rng.next_vec2());
+        // The gate may leave this vertex's light to the scattered direction; the number is
+        // drawn only where it can, so ungated paths keep their random streams.
+        let gate = self.next_event_probability(point);
+        if gate < 1.0 && rng.next_f32() >= gate {
+            return Vec3::ZERO;
+        }
         // The light chosen and its point pdf (per steradian, before selection), for learning.
         let mut chosen: Option<(u32, f32)> = None;
         // The environment guide's cell and lobe, for learning.
@@ -794,21 +812,26 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                     let Some(cell) = guide.cell(point) else { return Vec3::ZERO };
                     let s = clock.time(|| guide.distribution(cell).sample_lobe(u_select, u));
                     tile = Some((cell, s));
-                    (s.direction, environment.radiance(s.direction), self.environment_choice * s.pdf, f32::INFINITY)
+                    (
+                        s.direction,
+                        environment.radiance(s.direction),
+                        gate * self.environment_choice * s.pdf,
+                        f32::INFINITY,
+                    )
                 }
                 None => {
                     let Some(s) = environment.sample(u_select, u) else { return Vec3::ZERO };
-                    (s.wi, s.radiance, self.environment_choice * s.pdf, f32::INFINITY)
+                    (s.wi, s.radiance, gate * self.environment_choice * s.pdf, f32::INFINITY)
                 }
             }
         } else {
             let Some((light, probability)) = self.select_light(point, u_select) else { return Vec3::ZERO };
             let Some(s) = self.scene.lights.sample_point(light, &self.scene.triangles, point, u) else {
-                self.learn_light(point, light, 0.0, false);
+                self.learn_light(point, light, 0.0, false, counters.paths);
                 return Vec3::ZERO;
             };
             chosen = Some((light, s.pdf));
-            (s.wi, s.radiance, (1.0 - self.environment_choice) * probability * s.pdf, s.distance)
+            (s.wi, s.radiance, gate * (1.0 - self.environment_choice) * probability * s.pdf, s.distance)
         };
         if !(light_pdf.is_finite() && light_pdf > 0.0) || emitted == Vec3::ZERO {
             if let Some((cell, sample)) = tile {
@@ -819,7 +842,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         let f = material.eval(shading, wo, wi);
         if f == Vec3::ZERO {
             if let Some((light, _)) = chosen {
-                self.learn_light(point, light, 0.0, false);
+                self.learn_light(point, light, 0.0, false, counters.paths);
             }
             if let Some((cell, sample)) = tile {
                 self.learn_environment(cell, &sample, Vec3::ZERO);
@@ -841,7 +864,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         let occluded = transmittance <= 0.0;
         if let Some((light, point_pdf)) = chosen {
             // Eq. (3)'s ‖C‖∞: the unshadowed contribution of the whole light.
-            self.learn_light(point, light, (f * emitted / point_pdf).max_element(), !occluded);
+            self.learn_light(point, light, (f * emitted / point_pdf).max_element(), !occluded, counters.paths);
         }
         if let Some((cell, sample)) = tile {
             self.learn_environment(cell, &sample, f * transmittance);
@@ -854,11 +877,30 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         f * emitted * (weight * transmittance / light_pdf)
     }
 
-    /// Teaches the light guide (if lights are selected as learned) one shadow ray.
-    fn learn_light(&self, point: Vec3, light: u32, contribution: f32, unoccluded: bool) {
+    /// The probability that next-event estimation runs at `point`: the light guide's
+    /// gate where it has one, else 1. Emission found by a scattered direction is weighed
+    /// by MIS against this times the light pdf, so a vertex whose shadow ray the gate
+    /// skipped leaves its light to that direction, unbiased.
+    fn next_event_probability(&self, point: Vec3) -> f32 {
+        match self.light_guide {
+            Some(guide) if guide.settings().gate_scale > 0.0 => {
+                guide.cell(point).map_or(1.0, |cell| guide.next_event_probability(cell))
+            }
+            _ => 1.0,
+        }
+    }
+
+    /// Teaches the light guide one shadow ray: its V where lights are selected as
+    /// learned, else (in learning passes, from one path in [`GATE_PATH_STRIDE`]) only the
+    /// gate's count.
+    fn learn_light(&self, point: Vec3, light: u32, contribution: f32, unoccluded: bool, path: u64) {
         if let Some(guide) = self.light_guide {
             if let Some(cell) = guide.cell(point) {
-                guide.update(cell, light, contribution, unoccluded);
+                if self.settings.light_selection == LightSelection::Learned {
+                    guide.update(cell, light, contribution, unoccluded);
+                } else if self.settings.learn && path % GATE_PATH_STRIDE == 0 {
+                    guide.record_shadow_ray(cell, unoccluded);
+                }
             }
         }
     }

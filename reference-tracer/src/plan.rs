@@ -115,7 +115,7 @@ impl GuidePlan {
                 LightSelection::Power
             }
             None if lights < LEARNED_SELECTION_MIN_LIGHTS => {
-                reasons.push(format!("light selection: power ({lights} emissive triangles; no light guide)"));
+                reasons.push(format!("light selection: power ({lights} emissive triangles; no learned selection)"));
                 LightSelection::Power
             }
             None => {

@@ -216,9 +216,12 @@ pub fn render<I: Intersector, G: Guide>(
                 focal.rebuild_sampling();
             }
         }
-        if settings.integrator.light_selection == LightSelection::Learned {
-            if let Some(light_guide) = light_guide.as_deref_mut() {
+        if let Some(light_guide) = light_guide.as_deref_mut() {
+            if settings.integrator.light_selection == LightSelection::Learned {
                 light_guide.rebuild();
+            } else if integrator.learn && light_guide.settings().gate_scale > 0.0 {
+                // The gate counts only in learning passes: nothing to refit after others.
+                light_guide.rebuild_gate();
             }
         }
         let learns_environment = settings.integrator.environment_sampling == EnvironmentSampling::Tiles;

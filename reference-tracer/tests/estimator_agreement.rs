@@ -8,7 +8,7 @@ mod support;
 
 use guiding_core::{
     GaussianMixtureSettings, HemisphereGridSettings, IntegralEstimator, IrradianceVolumeSettings, LearningRate,
-    SpatialDirectionalTreeSettings, UpdateRule,
+    LightGuideSettings, SpatialDirectionalTreeSettings, UpdateRule,
 };
 use reference_tracer::cli::{prepare_with_lights, LightRequest};
 use reference_tracer::directional_guide::DirectionalGuide;
@@ -199,10 +199,11 @@ fn cornell_and_door_agree_under_the_iterative_schedule() {
 }
 
 /// Focal guiding under the iterative schedule agrees with nee: guided-nee aiming at the
-/// focal boxes alone and beside a tree at the first vertex, and guided (no next-event
-/// estimation) aiming at them; each render must have learned boxes, so the focal
-/// strategy really drew directions.
-fn assert_focal_agrees(scene: &std::path::Path, spp: u32, reference_spp: u32) {
+/// focal boxes alone, gated (next-event estimation skipped where shadow rays rarely
+/// arrive) and beside a tree at the first vertex, and guided (no next-event estimation)
+/// aiming at them; each ungated render must have learned boxes, so the focal strategy
+/// really drew directions, and where `gate_closes` the gate must have closed somewhere.
+fn assert_focal_agrees(scene: &std::path::Path, spp: u32, reference_spp: u32, gate_closes: bool) {
     let reference = mean_estimate(&render_scene(scene, settings(Method::Nee), None, reference_spp, 17));
     let tree = SpatialDirectionalTreeSettings { min_split_records: 64, ..Default::default() };
     // Every path learns, so that these small renders learn boxes for sure.
@@ -220,32 +221,45 @@ fn assert_focal_agrees(scene: &std::path::Path, spp: u32, reference_spp: u32) {
         ..settings(Method::GuidedNee)
     };
     let cases = [
-        ("guided-nee focal", focal(Method::GuidedNee), None),
-        ("guided focal", focal(Method::Guided), None),
-        ("guided-nee focal beside a tree", beside_tree, Some(tree.into())),
+        ("guided-nee focal", focal(Method::GuidedNee), None, 0.0, 40),
+        ("guided focal", focal(Method::Guided), None, 0.0, 41),
+        ("guided-nee focal beside a tree", beside_tree, Some(tree.into()), 0.0, 42),
+        ("guided-nee focal gated", focal(Method::GuidedNee), None, 5.0, 43),
     ];
-    for (i, (name, integrator, guide)) in cases.into_iter().enumerate() {
-        let lights = LightRequest::new(Some(integrator.light_selection), Some(integrator.environment_sampling), true);
+    for (name, integrator, guide, gate_scale, seed) in cases {
+        let mut lights =
+            LightRequest::new(Some(integrator.light_selection), Some(integrator.environment_sampling), true);
+        // A coarse grid, so that its cells see enough shadow rays in a small render.
+        lights.settings = LightGuideSettings { gate_scale, budget_bytes: 4 << 10, ..lights.settings };
         let mut prepared = prepare_with_lights(scene, IntersectorChoice::default(), guide, lights).unwrap();
         let render = RenderSettings {
             integrator,
             budget: Budget::SamplesPerPixel(spp),
-            seed: 40 + i as u64,
+            seed,
             train_seconds: 0.0,
             schedule: Schedule::Iterative,
             combine: reference_tracer::film::Combine::default(),
         };
         let (_, statistics) = prepared.render(&render, |_| {}).unwrap();
         let boxes = prepared.focal_guide.as_ref().map_or(0, |f| f.boxes().len());
-        assert!(boxes > 0, "{name}: the focal guide learned no boxes");
+        // Cornell has no opening: its boxes are few (two, say) and may be none; the gated
+        // case is there for the gate.
+        assert!(boxes > 0 || gate_scale > 0.0, "{name}: the focal guide learned no boxes");
+        if gate_scale > 0.0 {
+            let lights = prepared.light_guide.as_ref().expect("a gate needs its light guide");
+            let closed = (0..lights.cell_count() as u32)
+                .filter(|&c| lights.next_event_probability(guiding_core::LightCell(c)) < 1.0)
+                .count();
+            assert!(closed > 0 || !gate_closes, "{name}: the gate never closed");
+        }
         support::assert_agree(&format!("{name} vs nee"), &mean_estimate(&statistics), &reference);
     }
 }
 
 #[test]
 fn cornell_and_door_agree_under_focal_guiding() {
-    assert_focal_agrees(&support::repository_scene("cornell", 32, 32), 128, 256);
-    assert_focal_agrees(&support::repository_scene("door", 32, 24), 256, 512);
+    assert_focal_agrees(&support::repository_scene("cornell", 32, 32), 128, 256, false);
+    assert_focal_agrees(&support::repository_scene("door", 32, 24), 256, 512, true);
 }
 
 #[test]
@@ -330,6 +344,45 @@ fn window_means_agree_across_environment_sampling() {
             mean_estimate(&render_scene(&scene, with(method, EnvironmentSampling::Tiles), guide, 256, 60 + i as u64));
         support::assert_agree(&format!("{} with tiles vs nee with luminance", method.name()), &estimate, &reference);
     }
+}
+
+#[test]
+fn gated_next_event_estimation_agrees_with_lights_and_an_environment() {
+    // The window's sky and sun, and a lamp on the ceiling: the gate skips light and
+    // environment samples alike, and what scattered directions find makes up for them,
+    // MIS-weighted against the gated densities.
+    let source = support::repository_scene("window", 32, 24);
+    let mut json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&source).unwrap()).unwrap();
+    json["materials"]["lamp"] = json!({ "type": "diffuse", "albedo": [0.5, 0.5, 0.5], "emission": [20, 20, 20] });
+    let lamp = json!({ "type": "quad", "material": "lamp",
+        "corners": [[1.6, 2.59, -1.0], [1.6, 2.59, -0.4], [1.0, 2.59, -0.4], [1.0, 2.59, -1.0]] });
+    json["shapes"].as_array_mut().unwrap().push(lamp);
+    let scene = support::write_scene(&support::temp_folder("window-lamp"), &json);
+    let with = |method| reference_tracer::integrator::IntegratorSettings {
+        environment_sampling: EnvironmentSampling::Luminance,
+        ..settings(method)
+    };
+    let reference = mean_estimate(&render_scene(&scene, with(Method::Nee), None, 512, 71));
+    let integrator = with(Method::GuidedNee);
+    let mut lights = LightRequest::new(Some(integrator.light_selection), Some(integrator.environment_sampling), true);
+    lights.settings = LightGuideSettings { gate_scale: 5.0, budget_bytes: 4 << 10, ..lights.settings };
+    let guide = HemisphereGridSettings { probe_count: Some(400), ..Default::default() };
+    let mut prepared = prepare_with_lights(&scene, IntersectorChoice::default(), Some(guide.into()), lights).unwrap();
+    let render = RenderSettings {
+        integrator,
+        budget: Budget::SamplesPerPixel(256),
+        seed: 73,
+        train_seconds: 0.0,
+        schedule: Schedule::Online,
+        combine: reference_tracer::film::Combine::default(),
+    };
+    let (_, statistics) = prepared.render(&render, |_| {}).unwrap();
+    let gate = prepared.light_guide.as_ref().expect("the gate's light guide was built");
+    let closed = (0..gate.cell_count() as u32)
+        .filter(|&c| gate.next_event_probability(guiding_core::LightCell(c)) < 1.0)
+        .count();
+    assert!(closed > 0, "the gate never closed");
+    support::assert_agree("guided-nee gated vs nee", &mean_estimate(&statistics), &reference);
 }
 
 #[test]
