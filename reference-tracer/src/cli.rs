@@ -311,14 +311,14 @@ pub struct TraceOptions {
     #[arg(long, default_value = "mean", value_parser = parse_light_rule)]
     light_rule: LightUpdateRule,
     /// Next-event gate of guided methods (CPU): a grid cell whose share of arriving shadow
-    /// rays is v estimates next-event light with probability clamp(SCALE·v, 0.1, 1), and
+    /// rays is v estimates next-event light with probability clamp(SCALE·v, FLOOR, 1), and
     /// otherwise leaves its light to the scattered direction (MIS-weighted alike, so
     /// unbiased). 0 always shoots. 5 measured best (door 160×120, 30 s, guided-nee with
     /// the focal guide, ÷ nee: 0.50 and 0.45 against 0.59 and 0.61 ungated, seeds 11
     /// and 12; cornell unchanged).
     #[arg(long, default_value_t = 5.0)]
     nee_gate: f32,
-    /// The next-event gate's least probability of a shadow ray, in (0, 1]. 0.03 against
+    /// The next-event gate's least probability of a shadow ray (FLOOR above), in (0, 1]. 0.03 against
     /// 0.1 on door (30 s, seeds 11 and 12): relMSE 0.89 and 1.04 times, so 0.1 stays.
     #[arg(long, default_value_t = 0.1)]
     nee_gate_floor: f32,

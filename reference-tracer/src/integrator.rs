@@ -376,8 +376,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         let focal = focal.filter(|_| settings.method.uses_guide() && settings.focal_probability > 0.0);
         // The light guide selects lights where selection is learned, and gates next-event
         // estimation where its gate is on.
-        let light_guide = light_guide
-            .filter(|g| settings.light_selection == LightSelection::Learned || g.settings().gate_scale > 0.0);
+        let light_guide = light_guide.filter(|g| settings.light_selection == LightSelection::Learned || g.gates());
         let environment_guide =
             environment_guide.filter(|_| settings.environment_sampling == EnvironmentSampling::Tiles);
         let masks = scene.has_masks();
@@ -883,9 +882,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
     /// skipped leaves its light to that direction, unbiased.
     fn next_event_probability(&self, point: Vec3) -> f32 {
         match self.light_guide {
-            Some(guide) if guide.settings().gate_scale > 0.0 => {
-                guide.cell(point).map_or(1.0, |cell| guide.next_event_probability(cell))
-            }
+            Some(guide) if guide.gates() => guide.cell(point).map_or(1.0, |cell| guide.next_event_probability(cell)),
             _ => 1.0,
         }
     }

@@ -219,7 +219,7 @@ pub fn render<I: Intersector, G: Guide>(
         if let Some(light_guide) = light_guide.as_deref_mut() {
             if settings.integrator.light_selection == LightSelection::Learned {
                 light_guide.rebuild();
-            } else if integrator.learn && light_guide.settings().gate_scale > 0.0 {
+            } else if integrator.learn && light_guide.gates() {
                 // The gate counts only in learning passes: nothing to refit after others.
                 light_guide.rebuild_gate();
             }

@@ -138,6 +138,12 @@ impl LightGuide {
         cdf_probability(&self.cdf[self.row(cell)], light as usize)
     }
 
+    /// Whether the next-event gate is on (`gate_scale` > 0): only then can
+    /// [`next_event_probability`](Self::next_event_probability) fall below 1.
+    pub fn gates(&self) -> bool {
+        self.settings.gate_scale > 0.0
+    }
+
     /// The probability with which a vertex in `cell` estimates next-event light (1 with
     /// the gate off, or before the cell has seen enough shadow rays).
     pub fn next_event_probability(&self, cell: LightCell) -> f32 {
@@ -171,7 +177,7 @@ impl LightGuide {
         };
         let index = self.row(cell).start + light as usize;
         atomic_f32::increment_saturating(&self.shots[index]);
-        if self.settings.gate_scale > 0.0 {
+        if self.gates() {
             self.record_shadow_ray(cell, unoccluded);
         }
         let learn = |target: f32| atomic_f32::running_average(&self.values[index], &self.updates[index], target);
