@@ -248,12 +248,17 @@ pub struct TraceOptions {
     #[arg(long, value_parser = parse_integral)]
     integral: Option<IntegralEstimator>,
     /// When guided methods learn: online (every pass, every pass kept) or iterative
-    /// (training iterations of 1, 2, 4, … passes, discarded, then a frozen final image).
+    /// (training iterations of 1, 2, 4, … passes with a refit after each, then a frozen
+    /// final image; --combine says how the iterations make the image).
     #[arg(long, default_value = "online", value_parser = Schedule::from_name)]
     schedule: Schedule,
     /// How the iterative schedule's iterations make the image: final (the frozen last
     /// one alone), samples (every pass alike, unbiased) or inverse-variance (each
-    /// iteration by the inverse of its estimated relative variance).
+    /// iteration by the inverse of its estimated relative variance, estimated at each
+    /// pixel without it, and no sample above one of the latest iteration). Door 160×120,
+    /// 30 s, focal guided-nee, relMSE × spp, seeds 11 and 12: samples 12.82 and 12.60,
+    /// inverse-variance 12.83 and 12.26, final 10.98 and 10.97 (of fewer samples: relMSE
+    /// 1.5 times); cornell 128²: 0.194/0.198 against 0.195/0.200. Samples stays.
     #[arg(long, default_value = Combine::default().name(), value_parser = Combine::from_name)]
     combine: Combine,
     /// The tree guide's memory budget, MiB.
