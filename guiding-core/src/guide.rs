@@ -54,9 +54,10 @@ pub trait Guide: Sync + Sized {
     fn update(&self, region: Self::Region, direction: Vec3, target: f32) -> UpdateOutcome;
 
     /// [`update`](Self::update) for a direction the renderer drew with density `pdf`
-    /// (per steradian). Tables average per entry and need no density (the default
-    /// ignores it); guides that fit a density to the stream (the mixture) weight the
-    /// sample by `target / pdf`, so directions drawn often do not count more.
+    /// (per steradian), so that what is learned does not depend on how directions were
+    /// drawn: the tables (hemisphere grid, volume) weigh each entry's mean by
+    /// [`importance_weight`](crate::importance_weight), the tree records `target / pdf`,
+    /// the mixture weights its fit by it. The default ignores `pdf`.
     fn update_sampled(&self, region: Self::Region, direction: Vec3, target: f32, pdf: f32) -> UpdateOutcome {
         let _ = pdf;
         self.update(region, direction, target)

@@ -63,7 +63,10 @@ pub use guide::{Guide, GuideStats};
 pub use intersector::Intersector;
 pub use low_discrepancy::{hammersley, radical_inverse_base2, Pcg32};
 pub use scattering::{Lambertian, SampledDirection, ScatteringFunction};
-pub use update_rule::{blend, classify_target, IntegralEstimator, LearningRate, UpdateOutcome, UpdateRule};
+pub use update_rule::{
+    blend, classify_target, importance_weight, weighted_step, IntegralEstimator, LearningRate, UpdateOutcome,
+    UpdateRule,
+};
 
 #[cfg(feature = "env")]
 pub use environment::{EnvTileGuide, EnvTileGuideSettings};

@@ -9,6 +9,9 @@
 //!
 //! [`Guide::estimate_integral`]: crate::Guide::estimate_integral
 
+use core::sync::atomic::AtomicU32;
+
+use crate::atomic_f32;
 use crate::error::Error;
 
 /// The learning rate α of Eq. (1).
@@ -45,6 +48,20 @@ impl LearningRate {
             LearningRate::SimpleAverage => (1.0 / (1.0 + entry_visits as f64)) as f32,
             LearningRate::RegionVisits => (1.0 / (1.0 + region_visits as f64)) as f32,
             LearningRate::Global { exponent } => libm::pow(1.0 + epoch as f64, -(exponent as f64)) as f32,
+        }
+    }
+
+    /// α for an update that weighs `weight` (an [`importance_weight`]; 1 unweighted),
+    /// given the entry's visit count before it and its Σ of weights, to which this adds
+    /// `weight`. The simple average steps by w / (W + w), the weighted mean of every
+    /// target so far; the other rates by [`weighted_step`] of their α.
+    pub(crate) fn weighted_alpha(&self, entry: (u32, &AtomicU32), region_visits: u32, epoch: u32, weight: f32) -> f32 {
+        let (entry_visits, weights) = entry;
+        let (before, _) = atomic_f32::update(weights, |w| (w + weight).min(f32::MAX));
+        match *self {
+            LearningRate::SimpleAverage if weight > 0.0 => (weight as f64 / (before as f64 + weight as f64)) as f32,
+            LearningRate::SimpleAverage => 0.0,
+            _ => weighted_step(self.alpha(entry_visits, region_visits, epoch), weight),
         }
     }
 
@@ -142,6 +159,32 @@ pub fn classify_target(target: f32) -> Result<f32, UpdateOutcome> {
         Err(UpdateOutcome::RejectedNegative)
     } else {
         Ok(target)
+    }
+}
+
+/// The weight of a direction drawn with density `pdf` (per steradian) in a table
+/// entry's mean: `reference / pdf`, `reference` being the uniform density over the
+/// table's domain (1/2π for a hemisphere, 1/4π for the sphere); `None` for a pdf that
+/// is not finite and positive.
+///
+/// Weighted so, an entry's mean Σ w·t / Σ w estimates the mean of the target over the
+/// entry's solid angle whatever mixture of BSDF and guide drew the directions; an
+/// unweighted mean follows the drawing density inside the entry (bug 2 of the guiding
+/// issue: Q then depended on p_guide and the BSDF).
+pub fn importance_weight(reference: f32, pdf: f32) -> Option<f32> {
+    (pdf.is_finite() && pdf > 0.0).then(|| (reference / pdf).min(f32::MAX))
+}
+
+/// A learning rate's step α for an update that weighs `weight`: αw / (1 + α(w − 1)),
+/// which is α at w = 1, stays in [0, 1] for every w ≥ 0 and tends to αw for small α
+/// (a weighted mean's step, as if the earlier updates had weighed 1 each).
+pub fn weighted_step(alpha: f32, weight: f32) -> f32 {
+    let (alpha, weight) = (alpha as f64, weight.max(0.0) as f64);
+    let step = alpha * weight / (1.0 + alpha * (weight - 1.0));
+    if step.is_finite() {
+        step.clamp(0.0, 1.0) as f32
+    } else {
+        1.0
     }
 }
 

@@ -14,7 +14,7 @@ use crate::frame::Frame;
 use crate::geometry::Triangle;
 use crate::guide::{Guide, GuideStats};
 use crate::scattering::ScatteringFunction;
-use crate::update_rule::{blend, classify_target, IntegralEstimator, UpdateOutcome};
+use crate::update_rule::{blend, classify_target, importance_weight, IntegralEstimator, UpdateOutcome};
 
 use super::mapping::PatchLayout;
 use super::probe_lookup::ProbeLookup;
@@ -27,11 +27,11 @@ pub struct ProbeId(pub u32);
 
 /// Bytes of a grid's tables for `probes` probes of `patches` patches each, with the
 /// struct itself: per probe a position, a normal, two visit counts and the Lambertian
-/// sum (36 bytes); per patch
-/// Q, a visit count and a CDF entry (12 bytes); the lookup's bucket table; and the shared
-/// per-patch centre and cosine tables (16 bytes per patch).
+/// sum (36 bytes); per patch Q, a visit count, a weight sum and a CDF entry (16 bytes);
+/// the lookup's bucket table; and the shared per-patch centre and cosine tables (16
+/// bytes per patch).
 pub(crate) fn table_bytes(probes: usize, patches: usize) -> usize {
-    let per_probe = 3 * 4 + 3 * 4 + 3 * 4 + patches * 12;
+    let per_probe = 3 * 4 + 3 * 4 + 3 * 4 + patches * 16;
     probes.saturating_mul(per_probe)
         + (ProbeLookup::bucket_count(probes) + 1) * 4
         + patches * 16
@@ -95,6 +95,10 @@ pub struct HemisphereGrid {
     lambertian_sums: Vec<AtomicU32>,
     q: Vec<AtomicU32>,
     patch_visits: Vec<AtomicU32>,
+    /// Per patch Σ of the importance weights of its updates (f32 bits): the simple
+    /// average's denominator, so that each patch learns its mean over its solid angle
+    /// whatever density drew the directions.
+    patch_weights: Vec<AtomicU32>,
     cdf: Vec<f32>,
     lookup: ProbeLookup,
     patch_centers: Vec<Vec3>,
@@ -187,6 +191,9 @@ impl HemisphereGrid {
             rows
         };
         let to_atomic_f32 = |values: Vec<f32>| values.into_iter().map(atomic_f32::new).collect::<Vec<_>>();
+        // Weights are not serialized: a decoded grid goes on as if every earlier update
+        // had weighed 1 (its visit count).
+        let weights: Vec<f32> = state.patch_visits.iter().map(|&v| v as f32).collect();
         let visits_in_order = |values: &[u32], width: usize| -> Vec<AtomicU32> {
             let mut rows = Vec::with_capacity(values.len());
             for &i in &order {
@@ -207,6 +214,7 @@ impl HemisphereGrid {
             lambertian_sums: order.iter().map(|_| atomic_f32::new(0.0)).collect(),
             q: to_atomic_f32(reorder_rows(&state.q)),
             patch_visits: visits_in_order(&state.patch_visits, patches),
+            patch_weights: to_atomic_f32(reorder_rows(&weights)),
             cdf: cdf.unwrap_or_else(|| alloc::vec![0.0; state.q.len()]),
             lookup,
             patch_centers,
@@ -353,7 +361,9 @@ impl HemisphereGrid {
             + self.normals.capacity() * 12
             + (self.probe_visits.capacity() + self.visits_at_last_build.capacity() + self.lambertian_sums.capacity())
                 * 4;
-        let per_patch = (self.q.capacity() + self.patch_visits.capacity() + self.cdf.capacity()) * 4;
+        let per_patch =
+            (self.q.capacity() + self.patch_visits.capacity() + self.patch_weights.capacity() + self.cdf.capacity())
+                * 4;
         let shared = self.patch_centers.capacity() * 12 + self.patch_cos_integrals.capacity() * 4;
         per_probe + per_patch + shared + self.lookup.memory_bytes() + core::mem::size_of::<Self>()
     }
@@ -449,6 +459,44 @@ impl DirectionalDistribution for ProbeDistribution<'_> {
     }
 }
 
+impl HemisphereGrid {
+    /// Learns `target` for `direction`, the update weighing `weight` (1 unweighted).
+    fn update_weighted(&self, probe: ProbeId, direction: Vec3, target: f32, weight: f32) -> UpdateOutcome {
+        let target = match classify_target(target) {
+            Ok(t) => t,
+            Err(rejected) => {
+                let counter = match rejected {
+                    UpdateOutcome::RejectedNegative => &self.rejected_negative,
+                    _ => &self.rejected_non_finite,
+                };
+                counter.fetch_add(1, Ordering::Relaxed);
+                return rejected;
+            }
+        };
+        let Some(patch) = self.settings.layout.patch_of(self.frame(probe).to_local(direction)) else {
+            return UpdateOutcome::OutsideDomain;
+        };
+        let index = probe.0 as usize * self.patch_count() + patch;
+        let patch_visits = atomic_f32::increment_saturating(&self.patch_visits[index]);
+        let probe_visits = atomic_f32::increment_saturating(&self.probe_visits[probe.0 as usize]);
+        let alpha = self.settings.update_rule.learning_rate.weighted_alpha(
+            (patch_visits, &self.patch_weights[index]),
+            probe_visits,
+            self.epoch,
+            weight,
+        );
+        let floor = self.settings.q_floor;
+        let (previous, stored) = atomic_f32::update(&self.q[index], |q| blend(q, target, alpha, floor));
+        let change = (stored as f64 - previous as f64) * self.patch_cos_integrals[patch] as f64;
+        if change != 0.0 {
+            atomic_f32::update(&self.lambertian_sums[probe.0 as usize], |sum| {
+                (sum as f64 + change).min(f32::MAX as f64) as f32
+            });
+        }
+        UpdateOutcome::Accepted
+    }
+}
+
 impl Guide for HemisphereGrid {
     type Region = ProbeId;
     type Distribution<'a> = ProbeDistribution<'a>;
@@ -475,33 +523,16 @@ impl Guide for HemisphereGrid {
     }
 
     fn update(&self, probe: ProbeId, direction: Vec3, target: f32) -> UpdateOutcome {
-        let target = match classify_target(target) {
-            Ok(t) => t,
-            Err(rejected) => {
-                let counter = match rejected {
-                    UpdateOutcome::RejectedNegative => &self.rejected_negative,
-                    _ => &self.rejected_non_finite,
-                };
-                counter.fetch_add(1, Ordering::Relaxed);
-                return rejected;
-            }
-        };
-        let Some(patch) = self.settings.layout.patch_of(self.frame(probe).to_local(direction)) else {
-            return UpdateOutcome::OutsideDomain;
-        };
-        let index = probe.0 as usize * self.patch_count() + patch;
-        let patch_visits = atomic_f32::increment_saturating(&self.patch_visits[index]);
-        let probe_visits = atomic_f32::increment_saturating(&self.probe_visits[probe.0 as usize]);
-        let alpha = self.settings.update_rule.learning_rate.alpha(patch_visits, probe_visits, self.epoch);
-        let floor = self.settings.q_floor;
-        let (previous, stored) = atomic_f32::update(&self.q[index], |q| blend(q, target, alpha, floor));
-        let change = (stored as f64 - previous as f64) * self.patch_cos_integrals[patch] as f64;
-        if change != 0.0 {
-            atomic_f32::update(&self.lambertian_sums[probe.0 as usize], |sum| {
-                (sum as f64 + change).min(f32::MAX as f64) as f32
-            });
+        self.update_weighted(probe, direction, target, 1.0)
+    }
+
+    /// Weighs the update by the density the direction was drawn with (see
+    /// [`importance_weight`]): each patch learns its mean over its solid angle.
+    fn update_sampled(&self, probe: ProbeId, direction: Vec3, target: f32, pdf: f32) -> UpdateOutcome {
+        match importance_weight(0.5 / PI, pdf) {
+            Some(weight) => self.update_weighted(probe, direction, target, weight),
+            None => UpdateOutcome::OutsideDomain,
         }
-        UpdateOutcome::Accepted
     }
 
     fn estimate_integral<S: ScatteringFunction + ?Sized>(&self, probe: ProbeId, wo: Vec3, bsdf: &S, u: Vec2) -> f32 {
@@ -636,6 +667,63 @@ mod tests {
         let grid = HemisphereGrid::from_probes(&probes, settings).unwrap();
         let probe = grid.locate(Vec3::ZERO, Vec3::Z).unwrap();
         (grid, probe)
+    }
+
+    /// Learns `radiance` at one probe through directions drawn by the grid with
+    /// probability `p_guide`, cosine-weighted otherwise, rebuilding between rounds;
+    /// `weighted` passes each direction's pdf (`update_sampled`), else none (`update`).
+    fn learn_through_mixture(
+        p_guide: f32,
+        radiance: impl Fn(Vec3) -> f32,
+        weighted: bool,
+    ) -> (HemisphereGrid, ProbeId) {
+        let (mut grid, probe) = one_probe(HemisphereGridSettings::default());
+        let mut rng = crate::Pcg32::new(9, 2);
+        for _ in 0..4 {
+            let d = grid.distribution(probe);
+            for _ in 0..100_000 {
+                let u = rng.next_vec2();
+                let wi = if rng.next_f32() < p_guide {
+                    d.sample(u).direction
+                } else {
+                    let (r, phi) = (libm::sqrtf(u.x), 2.0 * PI * u.y);
+                    Vec3::new(r * libm::cosf(phi), r * libm::sinf(phi), libm::sqrtf(1.0 - u.x))
+                };
+                let pdf = p_guide * d.pdf(wi) + (1.0 - p_guide) * wi.z.max(0.0) / PI;
+                if weighted {
+                    grid.update_sampled(probe, wi, radiance(wi), pdf);
+                } else {
+                    grid.update(probe, wi, radiance(wi));
+                }
+            }
+            grid.rebuild_sampling();
+        }
+        (grid, probe)
+    }
+
+    /// Bug 2 of the guiding issue: the same radiance field learned through mixtures that
+    /// sample the grid with probability 0.1 and 0.9 (the rest cosine-weighted) gives the
+    /// same Q, each patch's mean over its solid angle. The field is bright within 0.02
+    /// of the horizon, inside the lowest ring of patches (0 ≤ cos θ < 1/8), where
+    /// cosine-weighted directions seldom go and the grid's (uniform in a patch) often do.
+    #[test]
+    fn learned_q_does_not_depend_on_the_density_that_drew_the_directions() {
+        let radiance = |d: Vec3| if d.z < 0.02 { 50.0 } else { 1.0 };
+        let layout = HemisphereGridSettings::default().layout;
+        let horizon = layout.patch_of(Vec3::new(0.999, 0.0, 0.01).normalize()).unwrap();
+        // The patch's mean: 50 over 0.02 of its 0.125 in cos θ (uniform in solid angle).
+        let exact = (0.02 * 50.0 + 0.105) / 0.125;
+        let q = |p_guide, weighted| {
+            let (grid, probe) = learn_through_mixture(p_guide, radiance, weighted);
+            grid.q(probe, horizon) as f64
+        };
+        let (low, high) = (q(0.1, true), q(0.9, true));
+        for (p_guide, learned) in [(0.1, low), (0.9, high)] {
+            assert!((learned / exact - 1.0).abs() < 0.06, "p_guide {p_guide}: Q {learned}, exact mean {exact}");
+        }
+        // Unweighted, cosine-weighted directions pull the mean down: the test can tell.
+        let unweighted = q(0.1, false);
+        assert!(unweighted / exact < 0.9, "unweighted Q {unweighted}, exact mean {exact}");
     }
 
     /// Q^γ with γ < 1 keeps the order of the patches but moves their probabilities

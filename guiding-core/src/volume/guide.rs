@@ -13,7 +13,7 @@ use crate::distribution::{fold_onto_hemisphere, folded_pdf, DirectionSample, Dir
 use crate::error::Error;
 use crate::guide::{Guide, GuideStats};
 use crate::scattering::ScatteringFunction;
-use crate::update_rule::{blend, classify_target, IntegralEstimator, UpdateOutcome};
+use crate::update_rule::{blend, classify_target, importance_weight, IntegralEstimator, UpdateOutcome};
 
 use super::irradiance_sh;
 use super::settings::{IrradianceVolumeSettings, BYTES_PER_NODE};
@@ -72,6 +72,9 @@ pub struct IrradianceVolume {
     nodes: Vec<u32>,
     q: Vec<AtomicU32>,
     patch_visits: Vec<AtomicU32>,
+    /// Per patch Σ of the importance weights of its updates (f32 bits), the simple
+    /// average's denominator (see [`importance_weight`]).
+    patch_weights: Vec<AtomicU32>,
     leaf_visits: Vec<AtomicU32>,
     /// Leaf visits when its CDF was last built (unchanged leaves are not rebuilt).
     visits_at_build: Vec<u32>,
@@ -188,6 +191,9 @@ impl IrradianceVolume {
             nodes: state.nodes,
             q: state.q.iter().map(|&q| atomic_f32::new(q)).collect(),
             patch_visits: atomics(&state.patch_visits),
+            // Weights are not serialized: a decoded volume goes on as if every earlier
+            // update had weighed 1 (its visit count).
+            patch_weights: state.patch_visits.iter().map(|&v| atomic_f32::new(v as f32)).collect(),
             visits_at_build: state.leaf_visits.clone(),
             leaf_visits: atomics(&state.leaf_visits),
             cdf: state.cdf,
@@ -405,6 +411,7 @@ impl IrradianceVolume {
         self.nodes.reserve_exact(8 * busy.len());
         self.q.reserve_exact(new_leaves * patches);
         self.patch_visits.reserve_exact(new_leaves * patches);
+        self.patch_weights.reserve_exact(new_leaves * patches);
         self.cdf.reserve_exact(new_leaves * patches);
         self.leaf_visits.reserve_exact(new_leaves);
         self.visits_at_build.reserve_exact(new_leaves);
@@ -420,6 +427,9 @@ impl IrradianceVolume {
             for slot in &self.patch_visits[row.clone()] {
                 slot.store(share(slot.load(Ordering::Relaxed)), Ordering::Relaxed);
             }
+            for slot in &self.patch_weights[row.clone()] {
+                slot.store((atomic_f32::load(slot) / 8.0).to_bits(), Ordering::Relaxed);
+            }
             let leaf_visits = share(self.leaf_visits[parent as usize].load(Ordering::Relaxed));
             self.leaf_visits[parent as usize].store(leaf_visits, Ordering::Relaxed);
             for _ in 0..7 {
@@ -428,6 +438,7 @@ impl IrradianceVolume {
                 for k in row.clone() {
                     self.q.push(AtomicU32::new(self.q[k].load(Ordering::Relaxed)));
                     self.patch_visits.push(AtomicU32::new(self.patch_visits[k].load(Ordering::Relaxed)));
+                    self.patch_weights.push(atomic_f32::new(atomic_f32::load(&self.patch_weights[k])));
                     self.cdf.push(self.cdf[k]);
                 }
                 self.leaf_visits.push(AtomicU32::new(leaf_visits));
@@ -445,6 +456,39 @@ impl Clone for IrradianceVolume {
         // Leaves that changed since their last build stay due for one.
         copy.visits_at_build.clone_from(&self.visits_at_build);
         copy
+    }
+}
+
+impl IrradianceVolume {
+    /// Learns `target` for `direction`, the update weighing `weight` (1 unweighted).
+    fn update_weighted(&self, region: VolumeRegion, direction: Vec3, target: f32, weight: f32) -> UpdateOutcome {
+        let target = match classify_target(target) {
+            Ok(t) => t,
+            Err(rejected) => {
+                let counter = match rejected {
+                    UpdateOutcome::RejectedNegative => &self.rejected_negative,
+                    _ => &self.rejected_non_finite,
+                };
+                counter.fetch_add(1, Ordering::Relaxed);
+                return rejected;
+            }
+        };
+        let Some(patch) = self.settings.layout.patch_of(direction) else {
+            return UpdateOutcome::OutsideDomain;
+        };
+        let leaf = region.leaf as usize;
+        let index = leaf * self.patch_count() + patch;
+        let patch_visits = atomic_f32::increment_saturating(&self.patch_visits[index]);
+        let leaf_visits = atomic_f32::increment_saturating(&self.leaf_visits[leaf]);
+        let alpha = self.settings.update_rule.learning_rate.weighted_alpha(
+            (patch_visits, &self.patch_weights[index]),
+            leaf_visits,
+            self.epoch,
+            weight,
+        );
+        let floor = self.settings.q_floor;
+        atomic_f32::update(&self.q[index], |q| blend(q, target, alpha, floor));
+        UpdateOutcome::Accepted
     }
 }
 
@@ -468,28 +512,16 @@ impl Guide for IrradianceVolume {
     }
 
     fn update(&self, region: VolumeRegion, direction: Vec3, target: f32) -> UpdateOutcome {
-        let target = match classify_target(target) {
-            Ok(t) => t,
-            Err(rejected) => {
-                let counter = match rejected {
-                    UpdateOutcome::RejectedNegative => &self.rejected_negative,
-                    _ => &self.rejected_non_finite,
-                };
-                counter.fetch_add(1, Ordering::Relaxed);
-                return rejected;
-            }
-        };
-        let Some(patch) = self.settings.layout.patch_of(direction) else {
-            return UpdateOutcome::OutsideDomain;
-        };
-        let leaf = region.leaf as usize;
-        let index = leaf * self.patch_count() + patch;
-        let patch_visits = atomic_f32::increment_saturating(&self.patch_visits[index]);
-        let leaf_visits = atomic_f32::increment_saturating(&self.leaf_visits[leaf]);
-        let alpha = self.settings.update_rule.learning_rate.alpha(patch_visits, leaf_visits, self.epoch);
-        let floor = self.settings.q_floor;
-        atomic_f32::update(&self.q[index], |q| blend(q, target, alpha, floor));
-        UpdateOutcome::Accepted
+        self.update_weighted(region, direction, target, 1.0)
+    }
+
+    /// Weighs the update by the density the direction was drawn with (see
+    /// [`importance_weight`]): each patch learns its mean over its solid angle.
+    fn update_sampled(&self, region: VolumeRegion, direction: Vec3, target: f32, pdf: f32) -> UpdateOutcome {
+        match importance_weight(0.25 / core::f32::consts::PI, pdf) {
+            Some(weight) => self.update_weighted(region, direction, target, weight),
+            None => UpdateOutcome::OutsideDomain,
+        }
     }
 
     /// `BsdfWeightedSum`: for a Lambertian BSDF, albedo × the leaf's spherical-harmonic
@@ -596,10 +628,57 @@ mod tests {
     use super::*;
     use crate::low_discrepancy::Pcg32;
     use crate::validation::{chi_square_test, pdf_integral, ChiSquareSettings};
+    use core::f32::consts::PI;
 
     fn volume(budget_bytes: usize) -> IrradianceVolume {
         let settings = IrradianceVolumeSettings { budget_bytes, ..Default::default() };
         IrradianceVolume::new(Vec3::ZERO, Vec3::new(2.0, 1.0, 1.0), settings).unwrap()
+    }
+
+    /// Bug 2 of the guiding issue, as for the hemisphere grid: Q learned through mixtures
+    /// that sample the volume with probability 0.1 and 0.9 (the rest cosine-weighted about
+    /// the normal) is each patch's mean over its solid angle. The field is bright within
+    /// 0.02 of the horizon, inside the band just above it.
+    #[test]
+    fn learned_q_does_not_depend_on_the_density_that_drew_the_directions() {
+        let radiance = |d: Vec3| if d.z < 0.02 { 50.0 } else { 1.0 };
+        let layout = SphereLayout::default();
+        let horizon = layout.patch_of(Vec3::new(0.999, 0.0, 0.01)).unwrap();
+        let point = Vec3::splat(0.5);
+        let q = |p_guide: f32, weighted: bool| {
+            let mut guide = volume(64 << 10);
+            let mut rng = Pcg32::new(9, 2);
+            for _ in 0..4 {
+                let region = guide.locate(point, Vec3::Z).unwrap();
+                let d = guide.distribution(region);
+                for _ in 0..250_000 {
+                    let u = rng.next_vec2();
+                    let wi = if rng.next_f32() < p_guide {
+                        d.sample(u).direction
+                    } else {
+                        let (r, phi) = (libm::sqrtf(u.x), 2.0 * PI * u.y);
+                        Vec3::new(r * libm::cosf(phi), r * libm::sinf(phi), libm::sqrtf(1.0 - u.x))
+                    };
+                    let pdf = p_guide * d.pdf(wi) + (1.0 - p_guide) * wi.z.max(0.0) / PI;
+                    if weighted {
+                        guide.update_sampled(region, wi, radiance(wi), pdf);
+                    } else {
+                        guide.update(region, wi, radiance(wi));
+                    }
+                }
+                // Splits too: the children share the parent's weights.
+                guide.rebuild_sampling();
+            }
+            guide.q(guide.locate(point, Vec3::Z).unwrap().leaf, horizon) as f64
+        };
+        // The band's mean: 50 over 0.02 of its 0.125 in z (uniform in solid angle), 1 above.
+        let exact = (0.02 * 50.0 + 0.105) / 0.125;
+        let (low, high) = (q(0.1, true), q(0.9, true));
+        for (p_guide, learned) in [(0.1, low), (0.9, high)] {
+            assert!((learned / exact - 1.0).abs() < 0.06, "p_guide {p_guide}: Q {learned}, exact mean {exact}");
+        }
+        let unweighted = q(0.1, false);
+        assert!(unweighted / exact < 0.9, "unweighted Q {unweighted}, exact mean {exact}");
     }
 
     #[test]

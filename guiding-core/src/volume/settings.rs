@@ -70,11 +70,11 @@ impl IrradianceVolumeSettings {
         check((0.0..=1.0).contains(&mix), "uniform_mix", mix as f64, "in [0, 1]")
     }
 
-    /// Bytes one leaf holds: per patch Q, visit count and CDF (4 bytes each), plus its
+    /// Bytes one leaf holds: per patch Q, visit count, weight sum and CDF (4 bytes each), plus its
     /// leaf visit count, the count at its last CDF build and its nine spherical-harmonic
     /// coefficients.
     pub fn bytes_per_leaf(&self) -> usize {
-        self.layout.patch_count() * 12 + 8 + 36
+        self.layout.patch_count() * 16 + 8 + 36
     }
 
     /// Bytes shared by all leaves: per patch its centre and its nine basis integrals.
