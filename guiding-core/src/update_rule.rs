@@ -9,7 +9,7 @@
 //!
 //! [`Guide::estimate_integral`]: crate::Guide::estimate_integral
 
-use core::sync::atomic::AtomicU32;
+use core::sync::atomic::{AtomicU32, AtomicUsize, Ordering};
 
 use crate::atomic_f32;
 use crate::error::Error;
@@ -55,6 +55,7 @@ impl LearningRate {
     /// given the entry's visit count before it and its Σ of weights, to which this adds
     /// `weight`. The simple average steps by w / (W + w), the weighted mean of every
     /// target so far; the other rates by [`weighted_step`] of their α.
+    #[cfg_attr(not(any(feature = "hemisphere", feature = "volume")), allow(dead_code))]
     pub(crate) fn weighted_alpha(&self, entry: (u32, &AtomicU32), region_visits: u32, epoch: u32, weight: f32) -> f32 {
         let (entry_visits, weights) = entry;
         let (before, _) = atomic_f32::update(weights, |w| (w + weight).min(f32::MAX));
@@ -160,6 +161,20 @@ pub fn classify_target(target: f32) -> Result<f32, UpdateOutcome> {
     } else {
         Ok(target)
     }
+}
+
+/// [`classify_target`], counting a rejected target in `negative` or `non_finite`: the
+/// tables' rejection counters that their stats report.
+#[cfg_attr(not(any(feature = "hemisphere", feature = "volume", feature = "mixture")), allow(dead_code))]
+pub(crate) fn accept_target(
+    target: f32,
+    negative: &AtomicUsize,
+    non_finite: &AtomicUsize,
+) -> Result<f32, UpdateOutcome> {
+    classify_target(target).inspect_err(|rejected| {
+        let counter = if *rejected == UpdateOutcome::RejectedNegative { negative } else { non_finite };
+        counter.fetch_add(1, Ordering::Relaxed);
+    })
 }
 
 /// The weight of a direction drawn with density `pdf` (per steradian) in a table

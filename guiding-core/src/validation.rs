@@ -330,6 +330,26 @@ fn regularized_gamma_q(a: f64, x: f64) -> f64 {
     }
 }
 
+/// Draws a direction from the mixture `p_guide`·`distribution` + (1 − `p_guide`)·cosine
+/// about +z, as a renderer mixing guide and a Lambertian BSDF would; returns it with the
+/// mixture's pdf (per steradian). For testing that what a guide learns through
+/// `update_sampled` does not depend on `p_guide`.
+pub fn sample_guide_or_cosine<D: DirectionalDistribution + ?Sized>(
+    distribution: &D,
+    p_guide: f32,
+    rng: &mut Pcg32,
+) -> (Vec3, f32) {
+    let u = rng.next_vec2();
+    let wi = if rng.next_f32() < p_guide {
+        distribution.sample(u).direction
+    } else {
+        let (r, phi) = (libm::sqrtf(u.x), 2.0 * core::f32::consts::PI * u.y);
+        Vec3::new(r * libm::cosf(phi), r * libm::sinf(phi), libm::sqrtf(1.0 - u.x))
+    };
+    let cosine = wi.z.max(0.0) * core::f32::consts::FRAC_1_PI;
+    (wi, p_guide * distribution.pdf(wi) + (1.0 - p_guide) * cosine)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -14,7 +14,7 @@ use crate::frame::Frame;
 use crate::geometry::Triangle;
 use crate::guide::{Guide, GuideStats};
 use crate::scattering::ScatteringFunction;
-use crate::update_rule::{blend, classify_target, importance_weight, IntegralEstimator, UpdateOutcome};
+use crate::update_rule::{accept_target, blend, importance_weight, IntegralEstimator, UpdateOutcome};
 
 use super::mapping::PatchLayout;
 use super::probe_lookup::ProbeLookup;
@@ -462,16 +462,9 @@ impl DirectionalDistribution for ProbeDistribution<'_> {
 impl HemisphereGrid {
     /// Learns `target` for `direction`, the update weighing `weight` (1 unweighted).
     fn update_weighted(&self, probe: ProbeId, direction: Vec3, target: f32, weight: f32) -> UpdateOutcome {
-        let target = match classify_target(target) {
+        let target = match accept_target(target, &self.rejected_negative, &self.rejected_non_finite) {
             Ok(t) => t,
-            Err(rejected) => {
-                let counter = match rejected {
-                    UpdateOutcome::RejectedNegative => &self.rejected_negative,
-                    _ => &self.rejected_non_finite,
-                };
-                counter.fetch_add(1, Ordering::Relaxed);
-                return rejected;
-            }
+            Err(rejected) => return rejected,
         };
         let Some(patch) = self.settings.layout.patch_of(self.frame(probe).to_local(direction)) else {
             return UpdateOutcome::OutsideDomain;
@@ -682,14 +675,7 @@ mod tests {
         for _ in 0..4 {
             let d = grid.distribution(probe);
             for _ in 0..100_000 {
-                let u = rng.next_vec2();
-                let wi = if rng.next_f32() < p_guide {
-                    d.sample(u).direction
-                } else {
-                    let (r, phi) = (libm::sqrtf(u.x), 2.0 * PI * u.y);
-                    Vec3::new(r * libm::cosf(phi), r * libm::sinf(phi), libm::sqrtf(1.0 - u.x))
-                };
-                let pdf = p_guide * d.pdf(wi) + (1.0 - p_guide) * wi.z.max(0.0) / PI;
+                let (wi, pdf) = crate::validation::sample_guide_or_cosine(&d, p_guide, &mut rng);
                 if weighted {
                     grid.update_sampled(probe, wi, radiance(wi), pdf);
                 } else {

@@ -14,7 +14,7 @@ use crate::distribution::{fold_onto_hemisphere, folded_pdf, DirectionSample, Dir
 use crate::error::Error;
 use crate::guide::{Guide, GuideStats};
 use crate::scattering::ScatteringFunction;
-use crate::update_rule::{classify_target, LearningRate, UpdateOutcome};
+use crate::update_rule::{accept_target, LearningRate, UpdateOutcome};
 
 use super::settings::{batch_stride, GaussianMixtureSettings};
 use super::vmf::{MAX_CONCENTRATION, MIN_CONCENTRATION};
@@ -339,16 +339,9 @@ impl Guide for GaussianMixture {
     }
 
     fn update_sampled(&self, region: MixtureRegion, direction: Vec3, target: f32, pdf: f32) -> UpdateOutcome {
-        let target = match classify_target(target) {
+        let target = match accept_target(target, &self.rejected_negative, &self.rejected_non_finite) {
             Ok(t) => t,
-            Err(rejected) => {
-                let counter = match rejected {
-                    UpdateOutcome::RejectedNegative => &self.rejected_negative,
-                    _ => &self.rejected_non_finite,
-                };
-                counter.fetch_add(1, Ordering::Relaxed);
-                return rejected;
-            }
+            Err(rejected) => return rejected,
         };
         let unit = direction.is_finite() && (direction.length_squared() - 1.0).abs() < 1e-3;
         if !(unit && pdf.is_finite() && pdf > 0.0) {

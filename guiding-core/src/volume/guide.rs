@@ -13,7 +13,7 @@ use crate::distribution::{fold_onto_hemisphere, folded_pdf, DirectionSample, Dir
 use crate::error::Error;
 use crate::guide::{Guide, GuideStats};
 use crate::scattering::ScatteringFunction;
-use crate::update_rule::{blend, classify_target, importance_weight, IntegralEstimator, UpdateOutcome};
+use crate::update_rule::{accept_target, blend, importance_weight, IntegralEstimator, UpdateOutcome};
 
 use super::irradiance_sh;
 use super::settings::{IrradianceVolumeSettings, BYTES_PER_NODE};
@@ -462,16 +462,9 @@ impl Clone for IrradianceVolume {
 impl IrradianceVolume {
     /// Learns `target` for `direction`, the update weighing `weight` (1 unweighted).
     fn update_weighted(&self, region: VolumeRegion, direction: Vec3, target: f32, weight: f32) -> UpdateOutcome {
-        let target = match classify_target(target) {
+        let target = match accept_target(target, &self.rejected_negative, &self.rejected_non_finite) {
             Ok(t) => t,
-            Err(rejected) => {
-                let counter = match rejected {
-                    UpdateOutcome::RejectedNegative => &self.rejected_negative,
-                    _ => &self.rejected_non_finite,
-                };
-                counter.fetch_add(1, Ordering::Relaxed);
-                return rejected;
-            }
+            Err(rejected) => return rejected,
         };
         let Some(patch) = self.settings.layout.patch_of(direction) else {
             return UpdateOutcome::OutsideDomain;
@@ -628,7 +621,6 @@ mod tests {
     use super::*;
     use crate::low_discrepancy::Pcg32;
     use crate::validation::{chi_square_test, pdf_integral, ChiSquareSettings};
-    use core::f32::consts::PI;
 
     fn volume(budget_bytes: usize) -> IrradianceVolume {
         let settings = IrradianceVolumeSettings { budget_bytes, ..Default::default() };
@@ -652,14 +644,7 @@ mod tests {
                 let region = guide.locate(point, Vec3::Z).unwrap();
                 let d = guide.distribution(region);
                 for _ in 0..250_000 {
-                    let u = rng.next_vec2();
-                    let wi = if rng.next_f32() < p_guide {
-                        d.sample(u).direction
-                    } else {
-                        let (r, phi) = (libm::sqrtf(u.x), 2.0 * PI * u.y);
-                        Vec3::new(r * libm::cosf(phi), r * libm::sinf(phi), libm::sqrtf(1.0 - u.x))
-                    };
-                    let pdf = p_guide * d.pdf(wi) + (1.0 - p_guide) * wi.z.max(0.0) / PI;
+                    let (wi, pdf) = crate::validation::sample_guide_or_cosine(&d, p_guide, &mut rng);
                     if weighted {
                         guide.update_sampled(region, wi, radiance(wi), pdf);
                     } else {
