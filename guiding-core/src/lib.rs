@@ -34,6 +34,7 @@ mod guide;
 mod intersector;
 mod low_discrepancy;
 mod scattering;
+mod strategy_share;
 mod update_rule;
 pub mod validation;
 
@@ -63,6 +64,7 @@ pub use guide::{Guide, GuideStats};
 pub use intersector::Intersector;
 pub use low_discrepancy::{hammersley, radical_inverse_base2, Pcg32};
 pub use scattering::{Lambertian, SampledDirection, ScatteringFunction};
+pub use strategy_share::{StrategyArrival, StrategyShares};
 pub use update_rule::{
     blend, classify_target, importance_weight, weighted_step, IntegralEstimator, LearningRate, UpdateOutcome,
     UpdateRule,

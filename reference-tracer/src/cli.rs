@@ -10,7 +10,7 @@ use guiding_core::volume::SphereLayout;
 use guiding_core::{
     EnvTileGuide, EnvTileGuideSettings, FocalGuide, FocalGuideSettings, GaussianMixtureSettings, HemisphereGrid,
     HemisphereGridSettings, HemisphereMapping, IntegralEstimator, IrradianceVolumeSettings, LearningRate, LightGuide,
-    LightGuideSettings, LightUpdateRule, PatchLayout, SpatialDirectionalTreeSettings, UpdateRule,
+    LightGuideSettings, LightUpdateRule, PatchLayout, SpatialDirectionalTreeSettings, StrategyShares, UpdateRule,
 };
 use indicatif::{ProgressBar, ProgressStyle};
 
@@ -233,6 +233,16 @@ pub struct TraceOptions {
     /// against 0.81–0.92; door 160×120 0.60 against 0.57).
     #[arg(long, default_value_t = 0.25)]
     focal_learn: f32,
+    /// The directional guide's share of the scattering: fixed (--p-guide at every guided
+    /// vertex) or learned (each cell of the focal guide's selection grid picks, up to
+    /// --p-guide, the share whose estimator had the least second moment, as the focal
+    /// guide does; where it picks 0 the guide is not even located). With `--guide
+    /// hemisphere --schedule iterative --p-guide 0.3 --p-focal 0.5`, 60 s, ÷ nee (seeds
+    /// 21, 22): door 160×120 0.494 and 0.486, cornell 128² 0.966 and 1.218 (per sample
+    /// 0.80 both times; its paths/s 0.83 and 0.66 of nee's). Fixed stays the default
+    /// until the six-scene table says otherwise.
+    #[arg(long, default_value = "fixed", value_parser = GuideShare::from_name)]
+    guide_share: GuideShare,
     /// The focal guide's selection cells along the scene's longest side, 1..=64: each
     /// learns its own probability of aiming at the boxes.
     #[arg(long)]
@@ -619,6 +629,7 @@ impl TraceOptions {
             guide_depth,
             focal_probability: self.p_focal,
             focal_learning_share: self.focal_learn,
+            learned_guide_share: self.guide_share == GuideShare::Learned,
             learn: true,
             light_selection: plan.light_selection,
             environment_sampling: plan.environment_sampling,
@@ -714,6 +725,27 @@ impl Device {
     }
 }
 
+/// How the directional guide's share of the scattering is set (`--guide-share`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum GuideShare {
+    /// `--p-guide` at every guided vertex.
+    #[default]
+    Fixed,
+    /// Learned per region, up to `--p-guide`.
+    Learned,
+}
+
+impl GuideShare {
+    /// Parses `fixed` or `learned`.
+    pub fn from_name(name: &str) -> Result<Self, String> {
+        match name {
+            "fixed" => Ok(GuideShare::Fixed),
+            "learned" => Ok(GuideShare::Learned),
+            _ => Err(format!("unknown guide share `{name}` (fixed, learned)")),
+        }
+    }
+}
+
 /// A scene loaded with its intersector and, for guided methods, its guide.
 pub struct Prepared {
     /// The scene.
@@ -724,6 +756,8 @@ pub struct Prepared {
     pub guide: Option<DirectionalGuide>,
     /// The focal guide, built at the first render of a guided method that aims at it.
     pub focal_guide: Option<FocalGuide>,
+    /// The directional guide's learned shares, built at the first render that learns them.
+    pub guide_shares: Option<StrategyShares>,
     /// Its settings.
     pub focal_settings: FocalGuideSettings,
     /// The learned light selection, when the plan asks for it and the scene has area lights.
@@ -759,6 +793,9 @@ impl Prepared {
         }
         if settings.integrator.method.uses_guide() && settings.integrator.focal_probability > 0.0 {
             return Err("the GPU tracer has no focal guide yet (leave out --p-focal)".into());
+        }
+        if guide.is_some() && settings.integrator.learned_guide_share {
+            return Err("the GPU tracer has no learned guide share (--guide-share fixed)".into());
         }
         if let Some(DirectionalGuide::Tree(_)) = guide.as_deref() {
             return Err("the GPU tracer has no tree guide yet (--guide hemisphere, volume or mixture)".into());
@@ -799,7 +836,8 @@ impl Prepared {
     /// Bytes of every structure `method` learns with: the directional and focal guides
     /// (guided methods), the light guide and the environment guide (as built by the plan).
     pub fn learned_bytes(&self, method: Method) -> usize {
-        let directions = self.guide.as_ref().filter(|_| method.uses_guide()).map_or(0, |g| g.stats().memory_bytes);
+        let directions = self.guide.as_ref().filter(|_| method.uses_guide()).map_or(0, |g| g.stats().memory_bytes)
+            + self.guide_shares.as_ref().filter(|_| method.uses_guide()).map_or(0, StrategyShares::memory_bytes);
         let lights = self.light_guide.as_ref().map_or(0, LightGuide::memory_bytes);
         let environment = self.environment_guide.as_ref().map_or(0, EnvTileGuide::memory_bytes);
         let focal = self.focal_guide.as_ref().filter(|_| method.uses_guide()).map_or(0, FocalGuide::memory_bytes);
@@ -824,28 +862,36 @@ impl Prepared {
             self.focal_guide = Some(focal);
         }
         let focal = self.focal_guide.as_mut().filter(|_| guided && settings.integrator.focal_probability > 0.0);
+        let learns_share = guided && settings.integrator.learned_guide_share && self.guide.is_some();
+        if learns_share && self.guide_shares.is_none() {
+            let (low, high) = self.scene.bounds();
+            let resolution = self.focal_settings.share_resolution;
+            self.guide_shares = Some(StrategyShares::new(low, high, resolution).map_err(|e| e.to_string())?);
+        }
+        let guide_shares = self.guide_shares.as_mut().filter(|_| learns_share);
         let lights = self.light_guide.as_mut();
         let environment = self.environment_guide.as_mut();
         let (scene, intersector) = (&self.scene, &self.intersector);
         Ok(match self.guide.as_mut().filter(|_| guided) {
             Some(DirectionalGuide::Hemisphere(guide)) => {
-                let learners = Learners { directions: Some(guide.as_mut()), focal, lights, environment };
+                let learners = Learners { directions: Some(guide.as_mut()), focal, guide_shares, lights, environment };
                 render(scene, intersector, learners, settings, &mut on_pass)
             }
             Some(DirectionalGuide::Volume(guide)) => {
-                let learners = Learners { directions: Some(guide), focal, lights, environment };
+                let learners = Learners { directions: Some(guide), focal, guide_shares, lights, environment };
                 render(scene, intersector, learners, settings, &mut on_pass)
             }
             Some(DirectionalGuide::Mixture(guide)) => {
-                let learners = Learners { directions: Some(guide), focal, lights, environment };
+                let learners = Learners { directions: Some(guide), focal, guide_shares, lights, environment };
                 render(scene, intersector, learners, settings, &mut on_pass)
             }
             Some(DirectionalGuide::Tree(guide)) => {
-                let learners = Learners { directions: Some(guide), focal, lights, environment };
+                let learners = Learners { directions: Some(guide), focal, guide_shares, lights, environment };
                 render(scene, intersector, learners, settings, &mut on_pass)
             }
             None => {
-                let learners: Learners<'_, HemisphereGrid> = Learners { directions: None, focal, lights, environment };
+                let learners: Learners<'_, HemisphereGrid> =
+                    Learners { directions: None, focal, guide_shares, lights, environment };
                 render(scene, intersector, learners, settings, &mut on_pass)
             }
         })
@@ -975,6 +1021,7 @@ pub fn prepare_with_lights(
         light_guide,
         environment_guide,
         focal_guide: None,
+        guide_shares: None,
         focal_settings: FocalGuideSettings::default(),
         plan,
         times,

@@ -8,7 +8,8 @@ use glam::{Vec2, Vec3};
 use guiding_core::environment::{EnvCell, EnvSample};
 use guiding_core::{
     DirectionalDistribution, EnvTileGuide, FocalArrival, FocalGuide, FocalRecord, Guide, Hit, IntegralEstimator,
-    Intersector, Lambertian, LightGuide, Pcg32, Ray, SampledDirection, ScatteringFunction,
+    Intersector, Lambertian, LightGuide, Pcg32, Ray, SampledDirection, ScatteringFunction, StrategyArrival,
+    StrategyShares,
 };
 
 use crate::color::luminance;
@@ -83,6 +84,10 @@ pub struct IntegratorSettings {
     /// pdf per arrival) cost more than most vertices need, and a quarter of a pass's
     /// paths still teach it plenty.
     pub focal_learning_share: f32,
+    /// Whether the directional guide's share is learned per region (up to
+    /// `guide_probability`; where it learns 0 the guide is not even located) instead of
+    /// `guide_probability` everywhere.
+    pub learned_guide_share: bool,
     /// Whether guided paths update the guide.
     pub learn: bool,
     /// How next-event estimation picks an area light.
@@ -101,6 +106,7 @@ impl Default for IntegratorSettings {
             guide_depth: u32::MAX,
             focal_probability: 0.0,
             focal_learning_share: 0.25,
+            learned_guide_share: false,
             learn: true,
             light_selection: LightSelection::Power,
             environment_sampling: EnvironmentSampling::Luminance,
@@ -266,6 +272,9 @@ pub struct LearningVertex<R> {
     /// Whether the arrival's focal pdf is left to learning: where the mixture did not aim
     /// at the boxes, the pdf of `direction` under them matters only if light arrived.
     focal_pdf_pending: bool,
+    /// How the direction was drawn, for the directional guide's learned share (`None`
+    /// where it has none or no region here).
+    guide_arrival: Option<StrategyArrival>,
     direction: Vec3,
     /// Density the direction was drawn with, per steradian (the one-sample mixture's).
     pdf: f32,
@@ -335,6 +344,8 @@ pub struct PathTracer<'a, I: Intersector, G: Guide> {
     guide: Option<&'a G>,
     /// The focal guide (guided methods with a focal probability above 0).
     focal: Option<&'a FocalGuide>,
+    /// The directional guide's learned share per region (`learned_guide_share`).
+    guide_shares: Option<&'a StrategyShares>,
     /// The learned light selection, when `settings.light_selection` is `Learned`.
     light_guide: Option<&'a LightGuide>,
     /// The learned environment sampling, when `settings.environment_sampling` is `Tiles`.
@@ -386,6 +397,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             intersector,
             guide,
             focal,
+            guide_shares: None,
             light_guide,
             environment_guide,
             settings,
@@ -394,6 +406,13 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             masks,
             carries_path,
         }
+    }
+
+    /// The tracer with the directional guide's learned shares (used where
+    /// `learned_guide_share` is set and a guide is there).
+    pub fn with_guide_shares(mut self, shares: Option<&'a StrategyShares>) -> Self {
+        self.guide_shares = shares.filter(|_| self.guide.is_some() && self.settings.learned_guide_share);
+        self
     }
 
     /// Offset of a ray leaving `point` on the side of `normal` that `direction` points to:
@@ -574,8 +593,18 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             let shading = material.shading_frame(geometric_normal, shading_normal, wo);
             let normal = shading.frame.normal;
             let delta = material.is_delta();
+            // The guide's share here: fixed, or learned per region (where it learned 0 the
+            // guide is not even located, except to keep learning).
+            let guides_here = self.guide.is_some() && !delta && depth < settings.guide_depth;
+            let guide_share = match self.guide_shares {
+                _ if !guides_here => 0.0,
+                Some(shares) => shares.share(point).min(settings.guide_probability),
+                None => settings.guide_probability,
+            };
             let region = match self.guide {
-                Some(guide) if !delta && depth < settings.guide_depth => clock.time(|| guide.locate(point, normal)),
+                Some(guide) if guides_here && (guide_share > 0.0 || learning) => {
+                    clock.time(|| guide.locate(point, normal))
+                }
                 _ => None,
             };
             if learning && !delta && !self.carries_path {
@@ -615,7 +644,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                     point,
                     geometric_normal,
                     wo,
-                    (distribution.as_ref(), focal_share),
+                    (distribution.as_ref(), guide_share, focal_share),
                     rng,
                     clock,
                     counters,
@@ -646,12 +675,12 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             // `mis_pdf` is what MIS with next-event estimation weighs by: the mixture
             // without the focal term (any function both strategies share keeps the
             // weights summing to one), which spares a focal pdf per light sample.
-            let (mut focal_arrival, mut focal_pdf_pending) = (None, false);
+            let (mut focal_arrival, mut focal_pdf_pending, mut guide_arrival) = (None, false, None);
             let (wi, factor, bsdf_factor, pdf, mis_pdf, sampled_delta) = if delta {
                 let Some(s) = material.sample(&shading, wo, u, u_lobe) else { break };
                 (s.wi, s.weight, s.weight, s.pdf, s.pdf, true)
             } else {
-                let guide_probability = if distribution.is_some() { settings.guide_probability } else { 0.0 };
+                let guide_probability = if distribution.is_some() { guide_share } else { 0.0 };
                 // A direction drawn from a guide comes with that guide's pdf: not evaluated twice.
                 let (wi, f, guide_pdf, focal_pdf) = match (&distribution, focal) {
                     (_, Some(focal)) if u_choice < focal_share && focal_share > 0.0 => {
@@ -682,10 +711,16 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                 focal_pdf_pending = focal.is_some() && focal_pdf.is_none();
                 let focal_pdf = focal_pdf.unwrap_or(0.0);
                 let bsdf_pdf = material.pdf(&shading, wo, wi);
-                let mis_pdf = self.mix_pdf(bsdf_pdf, guide_pdf, focal_share);
+                let mis_pdf = self.mix_pdf(bsdf_pdf, guide_pdf.map(|g| (g, guide_share)), focal_share);
                 let pdf = mis_pdf + focal_share * focal_pdf;
                 if !(pdf.is_finite() && pdf > 0.0) {
                     break;
+                }
+                if let (Some(_), Some(strategy_pdf)) = (self.guide_shares, guide_pdf) {
+                    // As for the focal arrival, the integrand waits for what arrives.
+                    let integrand = luminance(f);
+                    let selection = guide_share;
+                    guide_arrival = Some(StrategyArrival { point, integrand, pdf, strategy_pdf, bsdf_pdf, selection });
                 }
                 if focal.is_some() {
                     // The integrand is filled in once the path knows what arrived.
@@ -728,6 +763,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                     u_record: if self.focal.is_some() { rng.next_f32() } else { 0.5 },
                     focal_arrival,
                     focal_pdf_pending,
+                    guide_arrival,
                     direction: wi,
                     pdf,
                     arriving: 0.0,
@@ -762,19 +798,17 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         shading: &ShadingFrame,
         wo: Vec3,
         wi: Vec3,
-        guide_pdf: Option<f32>,
+        guide: Option<(f32, f32)>,
         focal_share: f32,
     ) -> f32 {
-        self.mix_pdf(material.pdf(shading, wo, wi), guide_pdf, focal_share)
+        self.mix_pdf(material.pdf(shading, wo, wi), guide, focal_share)
     }
 
-    /// [`scatter_pdf`](Self::scatter_pdf) from the BSDF's pdf.
-    fn mix_pdf(&self, bsdf_pdf: f32, guide_pdf: Option<f32>, focal_share: f32) -> f32 {
-        match guide_pdf {
-            Some(guide_pdf) => {
-                let p = self.settings.guide_probability;
-                p * guide_pdf + (1.0 - p - focal_share) * bsdf_pdf
-            }
+    /// [`scatter_pdf`](Self::scatter_pdf) from the BSDF's pdf; `guide` is the guide's
+    /// density of the direction and its share here.
+    fn mix_pdf(&self, bsdf_pdf: f32, guide: Option<(f32, f32)>, focal_share: f32) -> f32 {
+        match guide {
+            Some((guide_pdf, p)) => p * guide_pdf + (1.0 - p - focal_share) * bsdf_pdf,
             None => (1.0 - focal_share) * bsdf_pdf,
         }
     }
@@ -788,7 +822,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         point: Vec3,
         geometric_normal: Vec3,
         wo: Vec3,
-        (distribution, focal_share): (Option<&G::Distribution<'_>>, f32),
+        (distribution, guide_share, focal_share): (Option<&G::Distribution<'_>>, f32, f32),
         rng: &mut Pcg32,
         clock: &mut GuideClock,
         counters: &mut PathCounters,
@@ -871,8 +905,8 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         if occluded {
             return Vec3::ZERO;
         }
-        let guide_pdf = distribution.map(|distribution| clock.time(|| distribution.pdf(wi)));
-        let weight = power_heuristic(light_pdf, self.scatter_pdf(material, shading, wo, wi, guide_pdf, focal_share));
+        let guide = distribution.map(|distribution| (clock.time(|| distribution.pdf(wi)), guide_share));
+        let weight = power_heuristic(light_pdf, self.scatter_pdf(material, shading, wo, wi, guide, focal_share));
         f * emitted * (weight * transmittance / light_pdf)
     }
 
@@ -928,6 +962,9 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             let target = vertex.arriving + onward;
             if let (Some(region), Some(guide)) = (vertex.region, self.guide) {
                 guide.update_sampled(region, vertex.direction, target, vertex.pdf);
+            }
+            if let (Some(shares), Some(arrival)) = (self.guide_shares, vertex.guide_arrival) {
+                shares.record(&StrategyArrival { integrand: arrival.integrand * target, ..arrival });
             }
             if let (Some(focal), Some(arrival)) = (focal, vertex.focal_arrival) {
                 let integrand = arrival.integrand * target;

@@ -5,7 +5,7 @@
 use std::time::Instant;
 
 use glam::Vec3;
-use guiding_core::{EnvTileGuide, FocalGuide, Guide, HemisphereGrid, Intersector, LightGuide, Pcg32};
+use guiding_core::{EnvTileGuide, FocalGuide, Guide, HemisphereGrid, Intersector, LightGuide, Pcg32, StrategyShares};
 use rayon::prelude::*;
 
 use crate::film::{Combine, Film};
@@ -123,6 +123,8 @@ pub struct Learners<'a, G: Guide = HemisphereGrid> {
     pub directions: Option<&'a mut G>,
     /// The focal guide (guided methods with a focal probability above 0).
     pub focal: Option<&'a mut FocalGuide>,
+    /// The directional guide's learned share per region (`learned_guide_share`).
+    pub guide_shares: Option<&'a mut StrategyShares>,
     /// Learned light selection (`LightSelection::Learned`).
     pub lights: Option<&'a mut LightGuide>,
     /// Learned environment sampling (`EnvironmentSampling::Tiles`).
@@ -131,7 +133,7 @@ pub struct Learners<'a, G: Guide = HemisphereGrid> {
 
 impl<G: Guide> Default for Learners<'_, G> {
     fn default() -> Self {
-        Self { directions: None, focal: None, lights: None, environment: None }
+        Self { directions: None, focal: None, guide_shares: None, lights: None, environment: None }
     }
 }
 
@@ -144,8 +146,13 @@ pub fn render<I: Intersector, G: Guide>(
     settings: &RenderSettings,
     mut on_pass: impl FnMut(&Progress<'_>),
 ) -> (Image, RenderStatistics) {
-    let Learners { directions: mut guide, mut focal, lights: mut light_guide, environment: mut environment_guide } =
-        learners;
+    let Learners {
+        directions: mut guide,
+        mut focal,
+        mut guide_shares,
+        lights: mut light_guide,
+        environment: mut environment_guide,
+    } = learners;
     let (width, height) = (scene.camera.width as usize, scene.camera.height as usize);
     let mut film = Film::new(width, height, settings.combine);
     let mut statistics = RenderStatistics::default();
@@ -169,7 +176,8 @@ pub fn render<I: Intersector, G: Guide>(
             light_guide.as_deref(),
             environment_guide.as_deref(),
             integrator,
-        );
+        )
+        .with_guide_shares(guide_shares.as_deref());
         let pass_seed = pass_seed(settings.seed, pass);
         // Rows come back in order, so the pass sum is added up in the same order on every
         // run: renders that do not learn are reproducible to the last bit.
@@ -214,6 +222,9 @@ pub fn render<I: Intersector, G: Guide>(
             }
             if let Some(focal) = focal.as_deref_mut() {
                 focal.rebuild_sampling();
+            }
+            if let Some(shares) = guide_shares.as_deref_mut() {
+                shares.rebuild();
             }
         }
         if let Some(light_guide) = light_guide.as_deref_mut() {

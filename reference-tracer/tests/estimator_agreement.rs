@@ -220,6 +220,9 @@ fn assert_focal_agrees(scene: &std::path::Path, spp: u32, reference_spp: u32, ga
         guide_depth: 1,
         ..settings(Method::GuidedNee)
     };
+    // The tree's share learned per region, up to 0.3 (it is 0 until a cell has seen
+    // enough arrivals, so the early passes scatter without it).
+    let learned_share = reference_tracer::integrator::IntegratorSettings { learned_guide_share: true, ..beside_tree };
     use reference_tracer::film::Combine;
     let cases = [
         ("guided-nee focal", focal(Method::GuidedNee), None, 0.0, Combine::default(), 40),
@@ -227,6 +230,14 @@ fn assert_focal_agrees(scene: &std::path::Path, spp: u32, reference_spp: u32, ga
         ("guided-nee focal beside a tree", beside_tree, Some(tree.into()), 0.0, Combine::default(), 42),
         ("guided-nee focal gated", focal(Method::GuidedNee), None, 5.0, Combine::default(), 43),
         ("guided-nee focal by inverse variance", focal(Method::GuidedNee), None, 0.0, Combine::InverseVariance, 44),
+        (
+            "guided-nee focal beside a tree of learned share",
+            learned_share,
+            Some(tree.into()),
+            0.0,
+            Combine::default(),
+            45,
+        ),
     ];
     for (name, integrator, guide, gate_scale, combine, seed) in cases {
         let mut lights =
@@ -244,6 +255,7 @@ fn assert_focal_agrees(scene: &std::path::Path, spp: u32, reference_spp: u32, ga
         };
         let (image, statistics) = prepared.render(&render, |_| {}).unwrap();
         let boxes = prepared.focal_guide.as_ref().map_or(0, |f| f.boxes().len());
+        assert_eq!(prepared.guide_shares.is_some(), integrator.learned_guide_share, "{name}: the shares");
         // Cornell has no opening: its boxes are few (two, say) and may be none; the gated
         // case is there for the gate, the inverse-variance one for the image's weights.
         let for_boxes = gate_scale == 0.0 && combine == Combine::default();

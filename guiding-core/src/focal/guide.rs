@@ -2,7 +2,6 @@
 //! directions towards its densest leaves.
 
 use alloc::vec::Vec;
-use core::sync::atomic::AtomicU32;
 
 use glam::Vec3;
 
@@ -13,6 +12,7 @@ use super::settings::FocalGuideSettings;
 use crate::atomic_f32;
 use crate::distribution::DirectionSample;
 use crate::error::Error;
+use crate::strategy_share::{StrategyArrival, StrategyShares};
 use crate::update_rule::{classify_target, UpdateOutcome};
 
 /// One path segment that carried light, as the focal guide learns from it.
@@ -83,21 +83,12 @@ pub struct FocalGuide {
     run_lanes: Vec<BoxLanes>,
     /// Cumulative probabilities of `boxes`, the last 1.
     cdf: Vec<f32>,
-    /// The selection grid: cells per axis, the corner and the cell size; per cell the
-    /// estimated second moment of the one-sample estimator at each candidate probability
-    /// and the arrivals counted (f32 bits, learning), and the probability chosen
-    /// (sampling).
-    share_cells: [u32; 3],
-    share_low: Vec3,
-    /// Selection cells per unit length: a multiply per lookup instead of three divides.
-    share_cells_per_unit: f32,
-    moments: Vec<[AtomicU32; CANDIDATES.len()]>,
-    arrivals: Vec<AtomicU32>,
-    shares: Vec<f32>,
+    /// The probability of aiming at the boxes, learned per cell of a coarse grid.
+    selection: StrategyShares,
 }
 
 /// The probabilities of aiming at the boxes that each selection cell weighs.
-pub const CANDIDATES: [f32; 7] = [0.0, 0.02, 0.05, 0.1, 0.2, 0.35, 0.5];
+pub const CANDIDATES: [f32; 7] = crate::strategy_share::CANDIDATES;
 
 /// The Morton code (10 bits per axis, interleaved) of `p` in the unit cube.
 fn morton(p: Vec3) -> u32 {
@@ -110,9 +101,6 @@ fn morton(p: Vec3) -> u32 {
     };
     spread(p.x) | (spread(p.y) << 1) | (spread(p.z) << 2)
 }
-
-/// Arrivals a selection cell needs before it picks a probability above 0.
-const MIN_ARRIVALS: f32 = 64.0;
 
 /// One direction a path scattered into, as the selection learns from it: what arrived
 /// and every density that drew it.
@@ -159,11 +147,7 @@ impl FocalGuide {
                 requirement: "finite, with high ≥ low on every axis",
             });
         }
-        let extent = (high - low).max(Vec3::splat(1e-6));
-        let share_cell_size = extent.max_element() / settings.share_resolution as f32;
-        let counts = (extent / share_cell_size).ceil().max(Vec3::ONE);
-        let share_cells = [counts.x as u32, counts.y as u32, counts.z as u32];
-        let cells = share_cells.iter().product::<u32>() as usize;
+        let selection = StrategyShares::new(low, high, settings.share_resolution)?;
         Ok(Self {
             octree: FocalOctree::new(low, high),
             settings,
@@ -172,31 +156,16 @@ impl FocalGuide {
             box_lanes: Vec::new(),
             run_lanes: Vec::new(),
             cdf: Vec::new(),
-            share_cells,
-            share_low: low,
-            share_cells_per_unit: 1.0 / share_cell_size,
-            moments: (0..cells).map(|_| core::array::from_fn(|_| atomic_f32::new(0.0))).collect(),
-            arrivals: (0..cells).map(|_| atomic_f32::new(0.0)).collect(),
-            shares: alloc::vec![0.0; cells],
+            selection,
         })
-    }
-
-    /// The selection cell holding `point` (clamped into the grid).
-    fn share_cell(&self, point: Vec3) -> Option<usize> {
-        if !point.is_finite() {
-            return None;
-        }
-        let local = ((point - self.share_low) * self.share_cells_per_unit).max(Vec3::ZERO);
-        let [nx, ny, nz] = self.share_cells;
-        let (x, y, z) = ((local.x as u32).min(nx - 1), (local.y as u32).min(ny - 1), (local.z as u32).min(nz - 1));
-        Some((x + nx * (y + ny * z)) as usize)
     }
 
     /// The probability with which a vertex at `point` should aim at the boxes: of the
     /// [`CANDIDATES`], the one whose one-sample estimator had the least second moment
     /// over the arrivals learned around `point` (0 before enough were).
+    #[inline]
     pub fn selection_probability(&self, point: Vec3) -> f32 {
-        self.share_cell(point).map_or(0.0, |cell| self.shares[cell])
+        self.selection.share(point)
     }
 
     /// Learns how well aiming at the boxes would have served the vertex of `arrival`:
@@ -204,28 +173,14 @@ impl FocalGuide {
     /// with that mixture is estimated from the direction drawn with p:
     /// F²/(p·p_c), where p_c = p + (c − selection)·(focal_pdf − bsdf_pdf).
     pub fn record_arrival(&self, arrival: &FocalArrival) -> UpdateOutcome {
-        let integrand = match classify_target(arrival.integrand) {
-            Ok(f) => f,
-            Err(outcome) => return outcome,
-        };
-        let densities = [arrival.pdf, arrival.focal_pdf, arrival.bsdf_pdf, arrival.selection];
-        if !densities.iter().all(|d| d.is_finite() && *d >= 0.0) || arrival.pdf <= 0.0 {
-            return UpdateOutcome::OutsideDomain;
-        }
-        let Some(cell) = self.share_cell(arrival.point) else { return UpdateOutcome::OutsideDomain };
-        atomic_f32::update(&self.arrivals[cell], |n| n + 1.0);
-        if integrand > 0.0 {
-            let square = integrand as f64 * integrand as f64 / arrival.pdf as f64;
-            for (moment, &c) in self.moments[cell].iter().zip(&CANDIDATES) {
-                let mixture = arrival.pdf as f64
-                    + (c - arrival.selection) as f64 * (arrival.focal_pdf as f64 - arrival.bsdf_pdf as f64);
-                if mixture > 0.0 {
-                    let term = (square / mixture).min(f32::MAX as f64) as f32;
-                    atomic_f32::update(moment, |m| (m + term).min(f32::MAX));
-                }
-            }
-        }
-        UpdateOutcome::Accepted
+        self.selection.record(&StrategyArrival {
+            point: arrival.point,
+            integrand: arrival.integrand,
+            pdf: arrival.pdf,
+            strategy_pdf: arrival.focal_pdf,
+            bsdf_pdf: arrival.bsdf_pdf,
+            selection: arrival.selection,
+        })
     }
 
     /// The settings it was built with.
@@ -245,11 +200,10 @@ impl FocalGuide {
 
     /// Bytes held: octree nodes, sampling boxes and the selection grid.
     pub fn memory_bytes(&self) -> usize {
-        let cell = (CANDIDATES.len() + 1) * 4 + 4;
         self.octree.children.len() * 8
             + self.boxes.len() * (core::mem::size_of::<FocalBox>() + 4)
             + (self.box_lanes.len() + self.run_lanes.len()) * core::mem::size_of::<BoxLanes>()
-            + self.shares.len() * cell
+            + self.selection.memory_bytes()
     }
 
     /// Learns one segment: its weight × length is spread over the leaves it crosses, at
@@ -292,21 +246,7 @@ impl FocalGuide {
     /// where neighbours are alike (`merge_ratio`), the heaviest `max_boxes` of them, each
     /// chosen by its mass.
     pub fn rebuild_sampling(&mut self) {
-        // The moments were measured against the boxes of their time: older ones fade by
-        // half at every rebuild.
-        for ((share, moments), arrivals) in self.shares.iter_mut().zip(&self.moments).zip(&self.arrivals) {
-            let best = moments
-                .iter()
-                .zip(CANDIDATES)
-                .map(|(m, c)| (atomic_f32::load(m), c))
-                .fold((f32::INFINITY, 0.0), |best, (m, c)| if m < best.0 { (m, c) } else { best });
-            let seen = atomic_f32::load(arrivals);
-            *share = if seen >= MIN_ARRIVALS && best.0 > 0.0 { best.1 } else { 0.0 };
-            for m in moments {
-                atomic_f32::update(m, |m| 0.5 * m);
-            }
-            atomic_f32::update(arrivals, |n| 0.5 * n);
-        }
+        self.selection.rebuild();
         self.boxes.clear();
         self.cdf.clear();
         self.box_lanes.clear();

@@ -1,0 +1,213 @@
+//! How much of a one-sample mixture one sampling strategy (the focal boxes, a directional
+//! guide) should get, learned per cell of a coarse grid over the scene.
+//!
+//! A vertex that scatters by the mixture p = s·g + (1 − s − r)·b + r·o (the strategy g at
+//! share s, the BSDF b, any other strategies o at their shares r) records what arrived
+//! along the direction it drew. For each candidate share c, the second moment ∫ F²/p_c of
+//! the estimator with that share is estimated from the direction drawn with p as
+//! F²/(p·p_c), where p_c = p + (c − s)·(g − b). Each cell picks the candidate with the
+//! least; where a strategy does not pay that is 0, and the renderer skips its calls.
+
+use alloc::vec::Vec;
+use core::sync::atomic::AtomicU32;
+
+use glam::Vec3;
+
+use crate::atomic_f32;
+use crate::error::{require, Error};
+use crate::update_rule::{classify_target, UpdateOutcome};
+
+/// The shares each cell weighs.
+pub const CANDIDATES: [f32; 7] = [0.0, 0.02, 0.05, 0.1, 0.2, 0.35, 0.5];
+
+/// Arrivals a cell needs before it picks a share above 0.
+const MIN_ARRIVALS: f32 = 64.0;
+
+/// One direction a vertex scattered into, as the shares learn from it: what arrived and
+/// every density that drew it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StrategyArrival {
+    /// The vertex, world space.
+    pub point: Vec3,
+    /// fs·cos θ × the radiance that arrived along the direction (luminance): the
+    /// integrand of the vertex's scattering integral there.
+    pub integrand: f32,
+    /// The pdf the direction was drawn with (the whole mixture's), per steradian.
+    pub pdf: f32,
+    /// The strategy's pdf of the direction.
+    pub strategy_pdf: f32,
+    /// The BSDF's own pdf of it.
+    pub bsdf_pdf: f32,
+    /// The strategy's share in the mixture that drew it; the BSDF's share changes with
+    /// it, every other strategy's stays.
+    pub selection: f32,
+}
+
+/// Per cell of a grid over a box, the learned share of one strategy.
+#[derive(Debug)]
+pub struct StrategyShares {
+    cells: [u32; 3],
+    low: Vec3,
+    /// Cells per unit length: a multiply per lookup instead of three divides.
+    cells_per_unit: f32,
+    /// Per cell the estimated second moment at each candidate and the arrivals counted
+    /// (f32 bits, learning), and the share chosen at the last rebuild (sampling).
+    moments: Vec<[AtomicU32; CANDIDATES.len()]>,
+    arrivals: Vec<AtomicU32>,
+    shares: Vec<f32>,
+}
+
+impl StrategyShares {
+    /// Cells over `low..high`, `resolution` (1..=64) along the longest side and the other
+    /// sides in proportion; every share 0 until learned.
+    pub fn new(low: Vec3, high: Vec3, resolution: u32) -> Result<Self, Error> {
+        require((1..=64).contains(&resolution), "share_resolution", resolution as f64, "in 1..=64")?;
+        if !(low.is_finite() && high.is_finite() && high.cmpge(low).all()) {
+            return Err(Error::InvalidSetting {
+                name: "bounds",
+                value: f64::NAN,
+                requirement: "finite, with high ≥ low on every axis",
+            });
+        }
+        let extent = (high - low).max(Vec3::splat(1e-6));
+        let cell_size = extent.max_element() / resolution as f32;
+        let counts = (extent / cell_size).ceil().max(Vec3::ONE);
+        let cells = [counts.x as u32, counts.y as u32, counts.z as u32];
+        let count = cells.iter().product::<u32>() as usize;
+        Ok(Self {
+            cells,
+            low,
+            cells_per_unit: 1.0 / cell_size,
+            moments: (0..count).map(|_| core::array::from_fn(|_| atomic_f32::new(0.0))).collect(),
+            arrivals: (0..count).map(|_| atomic_f32::new(0.0)).collect(),
+            shares: alloc::vec![0.0; count],
+        })
+    }
+
+    /// The cell holding `point` (clamped into the grid).
+    fn cell(&self, point: Vec3) -> Option<usize> {
+        if !point.is_finite() {
+            return None;
+        }
+        let local = ((point - self.low) * self.cells_per_unit).max(Vec3::ZERO);
+        let [nx, ny, nz] = self.cells;
+        let (x, y, z) = ((local.x as u32).min(nx - 1), (local.y as u32).min(ny - 1), (local.z as u32).min(nz - 1));
+        Some((x + nx * (y + ny * z)) as usize)
+    }
+
+    /// The share the strategy should get at `point`: of the [`CANDIDATES`], the one whose
+    /// estimator had the least second moment over the arrivals learned around it (0
+    /// before enough were).
+    #[inline]
+    pub fn share(&self, point: Vec3) -> f32 {
+        self.cell(point).map_or(0.0, |cell| self.shares[cell])
+    }
+
+    /// Learns how each candidate share would have served the vertex of `arrival`.
+    /// Lock-free; safe from many threads during a pass.
+    pub fn record(&self, arrival: &StrategyArrival) -> UpdateOutcome {
+        let integrand = match classify_target(arrival.integrand) {
+            Ok(f) => f,
+            Err(outcome) => return outcome,
+        };
+        let densities = [arrival.pdf, arrival.strategy_pdf, arrival.bsdf_pdf, arrival.selection];
+        if !densities.iter().all(|d| d.is_finite() && *d >= 0.0) || arrival.pdf <= 0.0 {
+            return UpdateOutcome::OutsideDomain;
+        }
+        let Some(cell) = self.cell(arrival.point) else { return UpdateOutcome::OutsideDomain };
+        atomic_f32::update(&self.arrivals[cell], |n| n + 1.0);
+        if integrand > 0.0 {
+            let square = integrand as f64 * integrand as f64 / arrival.pdf as f64;
+            for (moment, &c) in self.moments[cell].iter().zip(&CANDIDATES) {
+                let mixture = arrival.pdf as f64
+                    + (c - arrival.selection) as f64 * (arrival.strategy_pdf as f64 - arrival.bsdf_pdf as f64);
+                if mixture > 0.0 {
+                    let term = (square / mixture).min(f32::MAX as f64) as f32;
+                    atomic_f32::update(moment, |m| (m + term).min(f32::MAX));
+                }
+            }
+        }
+        UpdateOutcome::Accepted
+    }
+
+    /// Picks each cell's share from what it learned. The moments were measured against
+    /// the strategy of their time: older ones fade by half at every rebuild.
+    pub fn rebuild(&mut self) {
+        for ((share, moments), arrivals) in self.shares.iter_mut().zip(&self.moments).zip(&self.arrivals) {
+            let best = moments
+                .iter()
+                .zip(CANDIDATES)
+                .map(|(m, c)| (atomic_f32::load(m), c))
+                .fold((f32::INFINITY, 0.0), |best, (m, c)| if m < best.0 { (m, c) } else { best });
+            let seen = atomic_f32::load(arrivals);
+            *share = if seen >= MIN_ARRIVALS && best.0 > 0.0 { best.1 } else { 0.0 };
+            for m in moments {
+                atomic_f32::update(m, |m| 0.5 * m);
+            }
+            atomic_f32::update(arrivals, |n| 0.5 * n);
+        }
+    }
+
+    /// Cells in the grid.
+    pub fn cell_count(&self) -> usize {
+        self.shares.len()
+    }
+
+    /// Bytes held.
+    pub fn memory_bytes(&self) -> usize {
+        self.shares.len() * ((CANDIDATES.len() + 1) * 4 + 4)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Arrivals at one point whose integrand the strategy's density matches (F = g): the
+    /// strategy should get the most; where it is blind to F (g = 0 where F > 0 and
+    /// F = b), none.
+    #[test]
+    fn a_strategy_that_matches_the_integrand_gets_the_largest_share_and_a_blind_one_none() {
+        let mut shares = StrategyShares::new(Vec3::ZERO, Vec3::new(2.0, 1.0, 1.0), 2).unwrap();
+        let (good, blind) = (Vec3::new(0.5, 0.5, 0.5), Vec3::new(1.5, 0.5, 0.5));
+        let mut rng = crate::Pcg32::new(3, 3);
+        for _ in 0..4000 {
+            // Drawn by the BSDF alone (share 0): b = 1/(2π) uniform, the strategy
+            // concentrated where F is (g = 10·b on a tenth of the directions).
+            let inside = rng.next_f32() < 0.1;
+            let b = 0.5 / core::f32::consts::PI;
+            let g = if inside { 10.0 * b } else { 0.0 };
+            let f = if inside { 1.0 } else { 0.0 };
+            let arrival =
+                StrategyArrival { point: good, integrand: f, pdf: b, strategy_pdf: g, bsdf_pdf: b, selection: 0.0 };
+            assert_eq!(shares.record(&arrival), UpdateOutcome::Accepted);
+            // Blind: F everywhere, the strategy nowhere.
+            let arrival = StrategyArrival {
+                point: blind,
+                integrand: 1.0,
+                pdf: b,
+                strategy_pdf: 0.0,
+                bsdf_pdf: b,
+                selection: 0.0,
+            };
+            shares.record(&arrival);
+        }
+        shares.rebuild();
+        assert_eq!(shares.share(good), *CANDIDATES.last().unwrap());
+        assert_eq!(shares.share(blind), 0.0);
+        // Bad input is refused, not learned.
+        let bad = StrategyArrival {
+            point: good,
+            integrand: f32::NAN,
+            pdf: 1.0,
+            strategy_pdf: 1.0,
+            bsdf_pdf: 1.0,
+            selection: 0.0,
+        };
+        assert_eq!(shares.record(&bad), UpdateOutcome::RejectedNonFinite);
+        let bad = StrategyArrival { pdf: 0.0, integrand: 1.0, ..bad };
+        assert_eq!(shares.record(&bad), UpdateOutcome::OutsideDomain);
+        assert!(StrategyShares::new(Vec3::ZERO, Vec3::ONE, 0).is_err());
+        assert!(StrategyShares::new(Vec3::ONE, Vec3::ZERO, 4).is_err());
+    }
+}
