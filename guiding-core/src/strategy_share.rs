@@ -17,8 +17,8 @@ use crate::atomic_f32;
 use crate::error::{require, Error};
 use crate::update_rule::{classify_target, UpdateOutcome};
 
-/// The shares each cell weighs.
-pub const CANDIDATES: [f32; 7] = [0.0, 0.02, 0.05, 0.1, 0.2, 0.35, 0.5];
+/// The shares each cell weighs ([`StrategyShares::CANDIDATES`]).
+pub(crate) const CANDIDATES: [f32; 7] = [0.0, 0.02, 0.05, 0.1, 0.2, 0.35, 0.5];
 
 /// Arrivals a cell needs before it picks a share above 0.
 const MIN_ARRIVALS: f32 = 64.0;
@@ -58,6 +58,9 @@ pub struct StrategyShares {
 }
 
 impl StrategyShares {
+    /// The shares each cell weighs.
+    pub const CANDIDATES: [f32; 7] = CANDIDATES;
+
     /// Cells over `low..high`, `resolution` (1..=64) along the longest side and the other
     /// sides in proportion; every share 0 until learned.
     pub fn new(low: Vec3, high: Vec3, resolution: u32) -> Result<Self, Error> {
@@ -95,7 +98,7 @@ impl StrategyShares {
         Some((x + nx * (y + ny * z)) as usize)
     }
 
-    /// The share the strategy should get at `point`: of the [`CANDIDATES`], the one whose
+    /// The share the strategy should get at `point`: of the [`CANDIDATES`](Self::CANDIDATES), the one whose
     /// estimator had the least second moment over the arrivals learned around it (0
     /// before enough were).
     #[inline]
