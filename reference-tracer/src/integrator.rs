@@ -88,6 +88,11 @@ pub struct IntegratorSettings {
     /// `guide_probability`; where it learns 0 the guide is not even located) instead of
     /// `guide_probability` everywhere.
     pub learned_guide_share: bool,
+    /// Whether the directional guide learns each direction with the density it was drawn
+    /// with (`Guide::update_sampled`: the tables' entries then learn their mean over
+    /// their solid angle) or without (`Guide::update`). The GPU tracer's tables learn
+    /// without; the CPU renders checked against them turn this off.
+    pub density_weighted_learning: bool,
     /// Whether guided paths update the guide.
     pub learn: bool,
     /// How next-event estimation picks an area light.
@@ -107,6 +112,7 @@ impl Default for IntegratorSettings {
             focal_probability: 0.0,
             focal_learning_share: 0.25,
             learned_guide_share: false,
+            density_weighted_learning: true,
             learn: true,
             light_selection: LightSelection::Power,
             environment_sampling: EnvironmentSampling::Luminance,
@@ -961,7 +967,11 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             };
             let target = vertex.arriving + onward;
             if let (Some(region), Some(guide)) = (vertex.region, self.guide) {
-                guide.update_sampled(region, vertex.direction, target, vertex.pdf);
+                if self.settings.density_weighted_learning {
+                    guide.update_sampled(region, vertex.direction, target, vertex.pdf);
+                } else {
+                    guide.update(region, vertex.direction, target);
+                }
             }
             if let (Some(shares), Some(arrival)) = (self.guide_shares, vertex.guide_arrival) {
                 shares.record(&StrategyArrival { integrand: arrival.integrand * target, ..arrival });

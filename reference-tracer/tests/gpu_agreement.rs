@@ -160,7 +160,11 @@ fn render_learning(
     seed: u64,
     settings: DirectionalGuideSettings,
 ) -> (RenderStatistics, DirectionalGuide) {
-    let (integrator, lights) = (integrator(method), power_lights());
+    // The shader's tables learn each direction unweighted, its mixture by target/pdf:
+    // the CPU renders compared with them learn alike.
+    let density_weighted_learning = matches!(settings, DirectionalGuideSettings::Mixture(_));
+    let integrator = IntegratorSettings { density_weighted_learning, ..integrator(method) };
+    let lights = power_lights();
     let mut prepared = prepare_with_lights(scene, IntersectorChoice::default(), Some(settings), lights).unwrap();
     prepared.device = device;
     let settings = RenderSettings {
