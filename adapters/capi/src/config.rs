@@ -208,6 +208,8 @@ impl LodestarGuideConfig {
             q_floor: finite(self.q_floor, "config->q_floor")?,
             uniform_mix: finite(self.uniform_mix, "config->uniform_mix")?,
             sampling_exponent: finite(self.sampling_exponent, "config->sampling_exponent")?,
+            // Not in the C struct (its layout is the ABI): C callers sample by Q alone.
+            cosine_product: false,
             update_rule: UpdateRule { learning_rate, integral },
         };
         settings.validate().map_err(|e| Failure::from_core(&e, "config"))?;

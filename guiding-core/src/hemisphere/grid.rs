@@ -246,15 +246,17 @@ impl HemisphereGrid {
         let patches = self.patch_count();
         let mix = self.settings.uniform_mix;
         let exponent = self.settings.sampling_exponent;
+        let cosine_product = self.settings.cosine_product;
         let rows = self.cdf.chunks_exact_mut(patches).zip(self.q.chunks_exact(patches));
         let counts = self.probe_visits.iter().zip(&mut self.visits_at_last_build).zip(&self.lambertian_sums);
         for ((cdf, q), ((visits, built), sum)) in rows.zip(counts) {
             let visits = visits.load(Ordering::Relaxed);
             if all || visits != *built {
+                let cosine = |k: usize| if cosine_product { self.patch_cos_integrals[k] } else { 1.0 };
                 if exponent == 1.0 {
-                    build_cdf(cdf, mix, |k| atomic_f32::load(&q[k]));
+                    build_cdf(cdf, mix, |k| atomic_f32::load(&q[k]) * cosine(k));
                 } else {
-                    build_cdf(cdf, mix, |k| libm::powf(atomic_f32::load(&q[k]), exponent));
+                    build_cdf(cdf, mix, |k| libm::powf(atomic_f32::load(&q[k]), exponent) * cosine(k));
                 }
                 let exact = weighted_sum(q, &self.patch_cos_integrals).min(f32::MAX as f64) as f32;
                 sum.store(exact.to_bits(), Ordering::Relaxed);
@@ -729,6 +731,35 @@ mod tests {
         let (sharp, tempered) = (probabilities(1.0), probabilities(0.5));
         assert!((sharp[3] / sharp[0] - 31.0).abs() < 0.01, "{sharp:?}");
         assert!((tempered[3] / tempered[0] - libm::sqrtf(31.0)).abs() < 0.01, "{tempered:?}");
+    }
+
+    /// The cosine product samples a patch by Q·∫cos: under a uniform Q it is the cosine
+    /// distribution patch by patch, and a patch's pdf stays P(patch)/ΔΩ, so the pdf of
+    /// a sampled direction is the one `pdf` returns. Its flag survives serialization.
+    #[test]
+    fn the_cosine_product_weighs_each_patch_by_its_cosine_integral() {
+        let settings = HemisphereGridSettings { uniform_mix: 0.0, cosine_product: true, ..Default::default() };
+        let (mut grid, probe) = one_probe(settings);
+        grid.set_q_values(probe, &alloc::vec![3.0; grid.patch_count()]);
+        grid.rebuild_sampling();
+        let row = &grid.cdf()[..grid.patch_count()];
+        for (k, &cos_integral) in grid.patch_cos_integrals().iter().enumerate() {
+            let expected = cos_integral / PI;
+            assert!(
+                (cdf_probability(row, k) - expected).abs() < 1e-5,
+                "patch {k}: {} against {expected}",
+                cdf_probability(row, k)
+            );
+        }
+        let mut rng = crate::Pcg32::new(5, 5);
+        for _ in 0..100 {
+            let s = grid.sample(probe, rng.next_vec2());
+            assert_eq!(s.pdf, grid.pdf(probe, s.direction));
+        }
+        let decoded = HemisphereGrid::from_bytes(&grid.to_bytes()).unwrap();
+        assert!(decoded.settings().cosine_product);
+        let plain = one_probe(HemisphereGridSettings::default()).0;
+        assert!(!HemisphereGrid::from_bytes(&plain.to_bytes()).unwrap().settings().cosine_product);
     }
 
     /// The running Lambertian sum that makes the Lambertian estimate O(1) matches the

@@ -2,7 +2,8 @@
 //!
 //! ```text
 //! "LODESTAR" magic (8 bytes) · u32 format version · u32 structure tag (1)
-//! settings: u32 mapping · u32 nu · u32 nv · u32 two_sided · f32 max_normal_angle_deg
+//! settings: u32 mapping · u32 nu · u32 nv · u32 flags (bit 0 two_sided, bit 1
+//!           cosine_product) · f32 max_normal_angle_deg
 //!           · u32 max_search_rings · f32 initial_q · f32 q_floor · f32 uniform_mix
 //!           · f32 sampling_exponent
 //!           · u32 learning-rate kind · f32 its parameter · u32 integral estimator
@@ -46,7 +47,7 @@ pub(crate) fn encode(grid: &HemisphereGrid) -> Vec<u8> {
     });
     w.put_u32(s.layout.resolution[0]);
     w.put_u32(s.layout.resolution[1]);
-    w.put_u32(s.two_sided as u32);
+    w.put_u32(s.two_sided as u32 | (s.cosine_product as u32) << 1);
     w.put_f32(s.max_normal_angle_deg);
     w.put_u32(s.max_search_rings);
     w.put_f32(s.initial_q);
@@ -78,11 +79,12 @@ fn read_settings(r: &mut ByteReader<'_>) -> Result<HemisphereGridSettings, Error
         _ => return Err(invalid_field("mapping", 0, "0 (cylindrical) or 1 (concentric square)")),
     };
     let resolution = [r.u32()?, r.u32()?];
-    let two_sided = match r.u32()? {
-        0 => false,
-        1 => true,
-        _ => return Err(invalid_field("two_sided", 0, "0 or 1")),
-    };
+    // Files written before the cosine product hold 0 or 1 here: they read alike.
+    let flags = r.u32()?;
+    if flags > 3 {
+        return Err(invalid_field("flags", 0, "bits 0 (two_sided) and 1 (cosine_product) only"));
+    }
+    let (two_sided, cosine_product) = (flags & 1 != 0, flags & 2 != 0);
     let max_normal_angle_deg = r.f32()?;
     let max_search_rings = r.u32()?;
     let initial_q = r.f32()?;
@@ -106,6 +108,7 @@ fn read_settings(r: &mut ByteReader<'_>) -> Result<HemisphereGridSettings, Error
         q_floor,
         uniform_mix,
         sampling_exponent,
+        cosine_product,
         update_rule,
     };
     settings.validate()?;

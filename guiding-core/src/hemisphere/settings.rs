@@ -41,6 +41,10 @@ pub struct HemisphereGridSettings {
     /// smaller values temper a peaked Q towards uniform, so directions Q has not (yet)
     /// learned to be bright are not starved.
     pub sampling_exponent: f32,
+    /// Sample patch k in proportion to Q_k·∫_k cos θ dω rather than Q_k: the product of
+    /// the incident radiance with a Lambertian surface's cosine, free here because a
+    /// probe's normal is fixed. The pdf stays uniform inside each patch.
+    pub cosine_product: bool,
     /// Learning rate and integral estimator.
     pub update_rule: UpdateRule,
 }
@@ -58,6 +62,7 @@ impl Default for HemisphereGridSettings {
             q_floor: f32::MIN_POSITIVE,
             uniform_mix: 0.02,
             sampling_exponent: 1.0,
+            cosine_product: false,
             update_rule: UpdateRule::default(),
         }
     }
