@@ -210,10 +210,11 @@ pub struct TraceOptions {
     /// through, learned from the segments that carried it) instead of the BSDF, at every
     /// vertex of a guided method; each region of space learns its own share up to it (the
     /// least second moment among 0, 0.02, … 0.5); p_guide + p_focal ≤ 1. 0 leaves it out.
-    /// 0.5 with `--guide none --p-guide 0 --schedule iterative`, at 60 s: door 160×120
-    /// 0.57–0.60 × nee's relMSE, cornell 128² 1.02 ×.
-    #[arg(long, default_value_t = 0.0)]
-    p_focal: f32,
+    /// Default 0.5 (at most 1 − p_guide) on the CPU, 0 on the GPU (which has no focal
+    /// guide). 0.5 with `--guide none --p-guide 0 --schedule iterative`, at 60 s: door
+    /// 160×120 0.57–0.60 × nee's relMSE, cornell 128² 1.02 ×.
+    #[arg(long)]
+    p_focal: Option<f32>,
     /// The focal guide's most boxes (its densest leaves), 1..=1024.
     #[arg(long)]
     focal_boxes: Option<u32>,
@@ -236,13 +237,13 @@ pub struct TraceOptions {
     /// The directional guide's share of the scattering: fixed (--p-guide at every guided
     /// vertex) or learned (each cell of the focal guide's selection grid picks, up to
     /// --p-guide, the share whose estimator had the least second moment, as the focal
-    /// guide does; where it picks 0 the guide is not even located). With `--guide
-    /// hemisphere --schedule iterative --p-guide 0.3 --p-focal 0.5`, 60 s, ÷ nee (seeds
-    /// 21, 22): door 160×120 0.494 and 0.486, cornell 128² 0.966 and 1.218 (per sample
-    /// 0.80 both times; its paths/s 0.83 and 0.66 of nee's). Fixed stays the default
-    /// until the six-scene table says otherwise.
-    #[arg(long, default_value = "fixed", value_parser = GuideShare::from_name)]
-    guide_share: GuideShare,
+    /// guide does; where it picks 0 the guide is not even located). Default learned on
+    /// the CPU, fixed on the GPU (which learns no share). With `--guide hemisphere
+    /// --schedule iterative --p-guide 0.3 --p-focal 0.5`, 60 s, ÷ nee (seeds 21, 22):
+    /// door 160×120 0.494 and 0.486, cornell 128² 0.966 and 1.218 (per sample 0.80 both
+    /// times; its paths/s 0.83 and 0.66 of nee's).
+    #[arg(long, value_parser = GuideShare::from_name)]
+    guide_share: Option<GuideShare>,
     /// The focal guide's selection cells along the scene's longest side, 1..=64: each
     /// learns its own probability of aiming at the boxes.
     #[arg(long)]
@@ -259,9 +260,10 @@ pub struct TraceOptions {
     integral: Option<IntegralEstimator>,
     /// When guided methods learn: online (every pass, every pass kept) or iterative
     /// (training iterations of 1, 2, 4, … passes with a refit after each, then a frozen
-    /// final image; --combine says how the iterations make the image).
-    #[arg(long, default_value = "online", value_parser = Schedule::from_name)]
-    schedule: Schedule,
+    /// final image; --combine says how the iterations make the image). Default
+    /// iterative on the CPU, online on the GPU (which learns online only).
+    #[arg(long, value_parser = Schedule::from_name)]
+    schedule: Option<Schedule>,
     /// How the iterative schedule's iterations make the image: final (the frozen last
     /// one alone), samples (every pass alike, unbiased) or inverse-variance (each
     /// iteration by the inverse of its estimated relative variance, estimated at each
@@ -306,6 +308,14 @@ pub struct TraceOptions {
     /// Exponent γ of the sampling weights Q^γ, in (0, 1].
     #[arg(long)]
     sampling_exponent: Option<f32>,
+    /// Whether a probe samples its patches by Q·∫cos (the product with a Lambertian
+    /// surface's cosine) rather than by Q alone (on, off). Default on for the CPU: with
+    /// `--guide hemisphere --guide-share learned --schedule iterative --p-guide 0.3
+    /// --p-focal 0.5`, 30 s, relMSE × spp off → on, seeds 31 and 32: cornell 128² 0.160 →
+    /// 0.149 and 0.162 → 0.149, door 160×120 15.67 → 14.92 and 13.99 → 13.79. The GPU
+    /// tracer samples by Q alone.
+    #[arg(long, value_parser = parse_switch)]
+    cosine_product: Option<bool>,
     /// Guided methods: seconds of training passes whose samples are discarded (their
     /// time counts towards --seconds).
     #[arg(long, default_value_t = 0.0)]
@@ -570,9 +580,38 @@ impl TraceOptions {
         }
     }
 
+    /// The focal guide's most share: `--p-focal`, else 0.5 (at most 1 − p_guide) on the
+    /// CPU and 0 on the GPU.
+    fn p_focal(&self) -> f32 {
+        match (self.p_focal, self.device) {
+            (Some(p), _) => p,
+            (None, Device::Gpu) => 0.0,
+            (None, _) => 0.5f32.min(1.0 - self.p_guide),
+        }
+    }
+
+    /// `--guide-share`, else learned on the CPU and fixed on the GPU.
+    fn guide_share(&self) -> GuideShare {
+        match (self.guide_share, self.device) {
+            (Some(share), _) => share,
+            (None, Device::Gpu) => GuideShare::Fixed,
+            (None, _) => GuideShare::Learned,
+        }
+    }
+
+    /// `--schedule`, else iterative on the CPU and online on the GPU.
+    fn schedule(&self) -> Schedule {
+        match (self.schedule, self.device) {
+            (Some(schedule), _) => schedule,
+            (None, Device::Gpu) => Schedule::Online,
+            (None, _) => Schedule::Iterative,
+        }
+    }
+
     fn focal_settings(&self) -> Result<FocalGuideSettings, String> {
-        if !(0.0..=1.0 - self.p_guide).contains(&self.p_focal) {
-            return Err(format!("--p-focal {} must be in [0, 1 − p_guide = {}]", self.p_focal, 1.0 - self.p_guide));
+        let p_focal = self.p_focal();
+        if !(0.0..=1.0 - self.p_guide).contains(&p_focal) {
+            return Err(format!("--p-focal {p_focal} must be in [0, 1 − p_guide = {}]", 1.0 - self.p_guide));
         }
         if !(self.focal_learn > 0.0 && self.focal_learn <= 1.0) {
             return Err(format!("--focal-learn {} must be in (0, 1]", self.focal_learn));
@@ -609,6 +648,7 @@ impl TraceOptions {
             uniform_mix: self.uniform_mix.unwrap_or(defaults.uniform_mix),
             max_normal_angle_deg: self.max_normal_angle.unwrap_or(defaults.max_normal_angle_deg),
             sampling_exponent: self.sampling_exponent.unwrap_or(defaults.sampling_exponent),
+            cosine_product: self.cosine_product.unwrap_or(self.device == Device::Cpu),
             ..defaults
         };
         settings.validate().map_err(|e| e.to_string())?;
@@ -627,9 +667,9 @@ impl TraceOptions {
             rr_depth: self.rr_depth,
             guide_probability: self.p_guide,
             guide_depth,
-            focal_probability: self.p_focal,
+            focal_probability: self.p_focal(),
             focal_learning_share: self.focal_learn,
-            learned_guide_share: self.guide_share == GuideShare::Learned,
+            learned_guide_share: self.guide_share() == GuideShare::Learned,
             density_weighted_learning: true,
             learn: true,
             light_selection: plan.light_selection,
@@ -1259,7 +1299,7 @@ fn run_render(args: &RenderArgs) -> Result<(), String> {
         budget,
         seed: options.seed,
         train_seconds: options.train_seconds,
-        schedule: options.schedule,
+        schedule: options.schedule(),
         combine: options.combine,
     };
     let (image, statistics, checkpoints) =
@@ -1359,6 +1399,7 @@ fn run_compare(args: &CompareArgs) -> Result<(), String> {
         let (compared, name) = (run.compared, run.name);
         let method = compared.method;
         let mut options = options.clone();
+        options.device = compared.device;
         options.light_selection = Auto(compared.selection.or(options.light_selection.0));
         options.env_sampling = Auto(compared.environment.or(options.env_sampling.0));
         let mut prepared = prepare_with_lights(
@@ -1384,7 +1425,7 @@ fn run_compare(args: &CompareArgs) -> Result<(), String> {
             budget: Budget::Seconds(args.seconds),
             seed: options.seed,
             train_seconds: options.train_seconds,
-            schedule: options.schedule,
+            schedule: options.schedule(),
             combine: options.combine,
         };
         let (image, statistics, checkpoints) =

@@ -8,7 +8,7 @@ use glam::{Vec2, Vec3};
 use guiding_core::environment::{EnvCell, EnvSample};
 use guiding_core::{
     DirectionalDistribution, EnvTileGuide, FocalArrival, FocalGuide, FocalRecord, Guide, Hit, IntegralEstimator,
-    Intersector, Lambertian, LightGuide, Pcg32, Ray, SampledDirection, ScatteringFunction, StrategyArrival,
+    Intersector, Lambertian, LightCell, LightGuide, Pcg32, Ray, SampledDirection, ScatteringFunction, StrategyArrival,
     StrategyShares,
 };
 
@@ -477,10 +477,11 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
 
     /// Density with which next-event estimation produces direction `wi` towards an
     /// emitter hit at `point` on `triangle`, seen from `from`.
-    fn light_pdf(&self, triangle: u32, from: Vec3, point: Vec3, normal: Vec3) -> f32 {
+    /// `cell` is the light guide's cell of `from`.
+    fn light_pdf(&self, triangle: u32, from: Vec3, cell: Option<LightCell>, point: Vec3, normal: Vec3) -> f32 {
         let Some(light) = self.scene.lights.light_of_triangle(triangle) else { return 0.0 };
         (1.0 - self.environment_choice)
-            * self.selection_probability(from, light)
+            * self.selection_probability(cell, light)
             * self.scene.lights.point_pdf(light, from, point, normal)
     }
 
@@ -493,8 +494,9 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         }
     }
 
-    /// Picks an area light for next-event estimation at `point`: its index and probability.
-    fn select_light(&self, point: Vec3, u: f32) -> Option<(u32, f32)> {
+    /// Picks an area light for next-event estimation at a point in the light guide's
+    /// `cell`: its index and probability.
+    fn select_light(&self, cell: Option<LightCell>, u: f32) -> Option<(u32, f32)> {
         let lights = &self.scene.lights;
         if lights.is_empty() {
             return None;
@@ -505,18 +507,18 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                 Some((((u * count as f32) as u32).min(count - 1), 1.0 / count as f32))
             }
             (LightSelection::Learned, Some(guide)) => {
-                let choice = guide.select(guide.cell(point)?, u);
+                let choice = guide.select(cell?, u);
                 Some((choice.light, choice.probability))
             }
             _ => Some(lights.select_by_power(u)),
         }
     }
 
-    /// The probability [`select_light`](Self::select_light) gives `light` at `from`.
-    fn selection_probability(&self, from: Vec3, light: u32) -> f32 {
+    /// The probability [`select_light`](Self::select_light) gives `light` in `cell`.
+    fn selection_probability(&self, cell: Option<LightCell>, light: u32) -> f32 {
         match (self.settings.light_selection, self.light_guide) {
             (LightSelection::Uniform, _) => 1.0 / self.scene.lights.len() as f32,
-            (LightSelection::Learned, Some(guide)) => guide.cell(from).map_or(0.0, |c| guide.probability(c, light)),
+            (LightSelection::Learned, Some(guide)) => cell.map_or(0.0, |c| guide.probability(c, light)),
             _ => self.scene.lights.power_probability(light),
         }
     }
@@ -544,9 +546,9 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         // next vertex and give the few left the weight back, undoing what aiming gained.
         // Without focal guiding it is the throughput itself.
         let mut roulette_throughput = Vec3::ONE;
-        // The previous vertex: its position, the pdf of the direction it sampled, and
-        // whether that direction came from a delta lobe.
-        let mut previous: Option<(Vec3, f32, bool)> = None;
+        // The previous vertex: its position, the pdf of the direction it sampled, whether
+        // that direction came from a delta lobe, and its light guide cell.
+        let mut previous: Option<(Vec3, f32, bool, Option<LightCell>)> = None;
         counters.paths += 1;
         for depth in 0..settings.max_depth {
             counters.rays += 1;
@@ -558,9 +560,9 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                 if let Some(environment) = &self.scene.environment {
                     let emitted = environment.radiance(ray.direction);
                     let weight = match previous {
-                        Some((from, pdf, false)) if settings.method.uses_nee() => power_heuristic(
+                        Some((from, pdf, false, cell)) if settings.method.uses_nee() => power_heuristic(
                             pdf,
-                            self.next_event_probability(from)
+                            self.next_event_probability(cell)
                                 * self.environment_choice
                                 * self.environment_pdf(environment, from, ray.direction),
                         ),
@@ -583,10 +585,10 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             // Emission from the front face.
             if material.is_emissive() && geometric_normal.dot(wo) > 0.0 {
                 let weight = match previous {
-                    Some((from, pdf, false)) if settings.method.uses_nee() => power_heuristic(
+                    Some((from, pdf, false, cell)) if settings.method.uses_nee() => power_heuristic(
                         pdf,
-                        self.next_event_probability(from)
-                            * self.light_pdf(hit.primitive, from, point, geometric_normal),
+                        self.next_event_probability(cell)
+                            * self.light_pdf(hit.primitive, from, cell, point, geometric_normal),
                     ),
                     _ => 1.0,
                 };
@@ -642,12 +644,17 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             let focal_share = focal.map_or(0.0, |f| f.selection_probability(point).min(settings.focal_probability));
             // Learning measures the boxes' share from every direction, sampled by them or not.
             let focal = focal.filter(|_| focal_share > 0.0 || learning);
-            // Next-event estimation.
+            // Next-event estimation, and the light guide's cell it and the MIS weight of
+            // emission found from here share.
+            let light_cell = match self.light_guide {
+                Some(guide) if settings.method.uses_nee() && !delta => guide.cell(point),
+                _ => None,
+            };
             if settings.method.uses_nee() && !delta {
                 let direct = self.direct_light(
                     material,
                     &shading,
-                    point,
+                    (point, light_cell),
                     geometric_normal,
                     wo,
                     (distribution.as_ref(), guide_share, focal_share),
@@ -777,7 +784,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                 });
             }
             ray = Ray::new(self.spawn(point, geometric_normal, wi), wi);
-            previous = Some((point, mis_pdf, sampled_delta));
+            previous = Some((point, mis_pdf, sampled_delta, light_cell));
         }
         if radiance.max_element() > 0.0 {
             counters.nonzero_paths += 1;
@@ -825,7 +832,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         &self,
         material: &Material,
         shading: &ShadingFrame,
-        point: Vec3,
+        (point, cell): (Vec3, Option<LightCell>),
         geometric_normal: Vec3,
         wo: Vec3,
         (distribution, guide_share, focal_share): (Option<&G::Distribution<'_>>, f32, f32),
@@ -836,7 +843,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         let (u_choice, u_select, u) = (rng.next_f32(), rng.next_f32(), rng.next_vec2());
         // The gate may leave this vertex's light to the scattered direction; the number is
         // drawn only where it can, so ungated paths keep their random streams.
-        let gate = self.next_event_probability(point);
+        let gate = self.next_event_probability(cell);
         if gate < 1.0 && rng.next_f32() >= gate {
             return Vec3::ZERO;
         }
@@ -864,9 +871,9 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                 }
             }
         } else {
-            let Some((light, probability)) = self.select_light(point, u_select) else { return Vec3::ZERO };
+            let Some((light, probability)) = self.select_light(cell, u_select) else { return Vec3::ZERO };
             let Some(s) = self.scene.lights.sample_point(light, &self.scene.triangles, point, u) else {
-                self.learn_light(point, light, 0.0, false, counters.paths);
+                self.learn_light(cell, light, 0.0, false, counters.paths);
                 return Vec3::ZERO;
             };
             chosen = Some((light, s.pdf));
@@ -881,7 +888,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         let f = material.eval(shading, wo, wi);
         if f == Vec3::ZERO {
             if let Some((light, _)) = chosen {
-                self.learn_light(point, light, 0.0, false, counters.paths);
+                self.learn_light(cell, light, 0.0, false, counters.paths);
             }
             if let Some((cell, sample)) = tile {
                 self.learn_environment(cell, &sample, Vec3::ZERO);
@@ -903,7 +910,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         let occluded = transmittance <= 0.0;
         if let Some((light, point_pdf)) = chosen {
             // Eq. (3)'s ‖C‖∞: the unshadowed contribution of the whole light.
-            self.learn_light(point, light, (f * emitted / point_pdf).max_element(), !occluded, counters.paths);
+            self.learn_light(cell, light, (f * emitted / point_pdf).max_element(), !occluded, counters.paths);
         }
         if let Some((cell, sample)) = tile {
             self.learn_environment(cell, &sample, f * transmittance);
@@ -920,9 +927,9 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
     /// gate where it has one, else 1. Emission found by a scattered direction is weighed
     /// by MIS against this times the light pdf, so a vertex whose shadow ray the gate
     /// skipped leaves its light to that direction, unbiased.
-    fn next_event_probability(&self, point: Vec3) -> f32 {
+    fn next_event_probability(&self, cell: Option<LightCell>) -> f32 {
         match self.light_guide {
-            Some(guide) if guide.gates() => guide.cell(point).map_or(1.0, |cell| guide.next_event_probability(cell)),
+            Some(guide) if guide.gates() => cell.map_or(1.0, |cell| guide.next_event_probability(cell)),
             _ => 1.0,
         }
     }
@@ -930,14 +937,13 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
     /// Teaches the light guide one shadow ray: its V where lights are selected as
     /// learned, else (in learning passes, from one path in [`GATE_PATH_STRIDE`]) only the
     /// gate's count.
-    fn learn_light(&self, point: Vec3, light: u32, contribution: f32, unoccluded: bool, path: u64) {
-        if let Some(guide) = self.light_guide {
-            if let Some(cell) = guide.cell(point) {
-                if self.settings.light_selection == LightSelection::Learned {
-                    guide.update(cell, light, contribution, unoccluded);
-                } else if self.settings.learn && path % GATE_PATH_STRIDE == 0 {
-                    guide.record_shadow_ray(cell, unoccluded);
-                }
+    /// `cell` is the light guide's cell of the shadow ray's origin.
+    fn learn_light(&self, cell: Option<LightCell>, light: u32, contribution: f32, unoccluded: bool, path: u64) {
+        if let (Some(guide), Some(cell)) = (self.light_guide, cell) {
+            if self.settings.light_selection == LightSelection::Learned {
+                guide.update(cell, light, contribution, unoccluded);
+            } else if self.settings.learn && path % GATE_PATH_STRIDE == 0 {
+                guide.record_shadow_ray(cell, unoccluded);
             }
         }
     }

@@ -49,6 +49,9 @@ pub fn unsupported(guide: GpuGuide<'_>) -> Option<String> {
             if settings.sampling_exponent != 1.0 {
                 return Some("a sampling exponent other than 1".into());
             }
+            if settings.cosine_product {
+                return Some("the cosine product (use --cosine-product off)".into());
+            }
             settings.update_rule.learning_rate
         }
         GpuGuide::Volume(volume) => volume.settings().update_rule.learning_rate,
