@@ -95,8 +95,10 @@ struct CompareArgs {
 struct RenderArgs {
     /// The scene file: scene.json, or a pbrt-v3 (.pbrt) or Mitsuba (.xml) scene.
     scene: PathBuf,
-    /// pt, nee, guided or guided-nee.
-    #[arg(long, default_value = "nee", value_parser = parse_method)]
+    /// pt, nee, guided or guided-nee. Default guided-nee: at 60 s, with the guided
+    /// defaults, its relMSE ÷ nee's was 0.413 and 0.555 on door 160×120 (seeds 42, 41),
+    /// 0.932 and 0.988 on cornell 128²; six scenes in the README.
+    #[arg(long, default_value = "guided-nee", value_parser = parse_method)]
     integrator: Method,
     #[command(flatten)]
     options: TraceOptions,

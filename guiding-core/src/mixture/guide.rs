@@ -622,7 +622,9 @@ mod tests {
         }
         assert_eq!(distribution.pdf(-normal), 0.0);
         assert_eq!(distribution.pdf(Vec3::NAN), 0.0);
-        let total = pdf_integral(&|d| distribution.pdf(d), normal, 64, 6);
+        // 32² cells four levels deep: the horizon's cut lies on a cell border (z = 0), so
+        // this is exact to 1e-3 at 1/64 of the evaluations of 64 cells six levels deep.
+        let total = pdf_integral(&|d| distribution.pdf(d), normal, 32, 4);
         assert!((total - 1.0).abs() < 1e-3, "∫ = {total}");
         let report = chi_square_test(&distribution, normal, &ChiSquareSettings::default());
         assert!(report.passes(0.01), "{report:?}");

@@ -319,7 +319,8 @@ mod tests {
         let sun = Vec3::new(0.2, 0.9, -0.3).normalize();
         let sky = |d: Vec3| 0.2 * d.y.max(0.0) + 50.0 * (d.dot(sun) - 0.98).max(0.0);
         fit(&mut mixture, sky, 4000, 8, 3);
-        let total = pdf_integral(&|d| mixture.pdf(d), Vec3::Y, 32, 6);
+        // Five levels (a quarter of six's evaluations) keep ∫ within 2e-3 of one.
+        let total = pdf_integral(&|d| mixture.pdf(d), Vec3::Y, 32, 5);
         assert!((total - 1.0).abs() < 2e-3, "∫ = {total}");
         let settings = ChiSquareSettings { theta_bins: 24, phi_bins: 48, samples: 2_000_000, ..Default::default() };
         let report = chi_square_test(&mixture, Vec3::Y, &settings);
