@@ -148,11 +148,17 @@ fn methods_and_guides(probes: usize) -> Vec<(String, Method, Option<DirectionalG
     cases
 }
 
-/// Every method and rule agrees with a long `nee` render of the same scene.
-fn assert_means_agree(scene: &std::path::Path, probes: usize, spp: u32, reference_spp: u32) {
+/// Every method and rule agrees with a long `nee` render of the same scene; pt renders
+/// four times the passes, the guided methods without next-event estimation
+/// `light_search` times.
+fn assert_means_agree(scene: &std::path::Path, probes: usize, spp: u32, reference_spp: u32, light_search: u32) {
     let reference = mean_estimate(&render_scene(scene, settings(Method::Nee), None, reference_spp, 11));
     for (i, (name, method, guide)) in methods_and_guides(probes).into_iter().enumerate() {
-        let spp = if method == Method::Pt { 4 * spp } else { spp };
+        let spp = match method {
+            Method::Pt => 4 * spp,
+            _ if !method.uses_nee() => light_search * spp,
+            _ => spp,
+        };
         let estimate = mean_estimate(&render_scene(scene, settings(method), guide, spp, 100 + i as u64));
         support::assert_agree(&format!("{name} vs nee"), &estimate, &reference);
     }
@@ -160,12 +166,16 @@ fn assert_means_agree(scene: &std::path::Path, probes: usize, spp: u32, referenc
 
 #[test]
 fn cornell_means_agree_across_integrators_and_update_rules() {
-    assert_means_agree(&support::repository_scene("cornell", 32, 32), 400, 128, 256);
+    assert_means_agree(&support::repository_scene("cornell", 32, 32), 400, 128, 256, 1);
 }
 
 #[test]
 fn door_means_agree_across_integrators_and_update_rules() {
-    assert_means_agree(&support::repository_scene("door", 32, 24), 600, 256, 512);
+    // Behind the door only scattered directions that pass the gap find the light without
+    // next-event estimation: a pass's mean rests on few paths and its standard error is
+    // itself noisy (at nee's passes, `guided Global { exponent: 0.75 } BsdfWeightedSum`
+    // once came out at 0.0234 ± 0.0050 against 0.0442 ± 0.0011), so twice the passes.
+    assert_means_agree(&support::repository_scene("door", 32, 24), 600, 256, 512, 2);
 }
 
 /// The tree under the iterative schedule (training iterations combined into the image as
