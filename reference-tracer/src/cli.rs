@@ -657,8 +657,8 @@ impl TraceOptions {
         Ok(settings)
     }
 
-    fn integrator(&self, method: Method, plan: &GuidePlan, device: Device) -> IntegratorSettings {
-        let guide_depth = match (self.guide_depth, device) {
+    fn integrator(&self, method: Method, plan: &GuidePlan) -> IntegratorSettings {
+        let guide_depth = match (self.guide_depth, self.device) {
             (Some(depth), _) => depth,
             (None, Device::Gpu) => u32::MAX,
             (None, _) => 1,
@@ -693,7 +693,7 @@ impl TraceOptions {
     }
 
     /// What to build for light selection under `method`.
-    fn light_request(&self, method: Method, device: Device) -> Result<LightRequest, String> {
+    fn light_request(&self, method: Method) -> Result<LightRequest, String> {
         if !(self.light_guide_mib.is_finite() && self.light_guide_mib > 0.0) {
             return Err(format!("--light-guide-mib {} must be positive", self.light_guide_mib));
         }
@@ -706,7 +706,7 @@ impl TraceOptions {
         let budget_bytes = (self.light_guide_mib * (1 << 20) as f64) as usize;
         // The gate learns, so unguided methods (the baselines) and the GPU tracer (which
         // has no light guide) shoot every shadow ray.
-        let gated = method.uses_guide() && device == Device::Cpu;
+        let gated = method.uses_guide() && self.device == Device::Cpu;
         let gate_scale = if gated { self.nee_gate } else { 0.0 };
         let settings = LightGuideSettings {
             budget_bytes,
@@ -1274,12 +1274,8 @@ fn run_render(args: &RenderArgs) -> Result<(), String> {
         None => None,
     };
     let pool = thread_pool(options.threads)?;
-    let mut prepared = prepare_with_lights(
-        &args.scene,
-        options.intersector,
-        guide,
-        options.light_request(args.integrator, options.device)?,
-    )?;
+    let mut prepared =
+        prepare_with_lights(&args.scene, options.intersector, guide, options.light_request(args.integrator)?)?;
     resize(&mut prepared, options.resolution);
     prepared.device = options.device;
     prepared.focal_settings = options.focal_settings()?;
@@ -1297,7 +1293,7 @@ fn run_render(args: &RenderArgs) -> Result<(), String> {
         }
     }
     let settings = RenderSettings {
-        integrator: options.integrator(args.integrator, &prepared.plan, prepared.device),
+        integrator: options.integrator(args.integrator, &prepared.plan),
         budget,
         seed: options.seed,
         train_seconds: options.train_seconds,
@@ -1408,7 +1404,7 @@ fn run_compare(args: &CompareArgs) -> Result<(), String> {
             &args.scene,
             options.intersector,
             options.directional_guide(method, run.guide)?,
-            options.light_request(method, compared.device)?,
+            options.light_request(method)?,
         )?;
         resize(&mut prepared, options.resolution);
         prepared.device = compared.device;
@@ -1423,7 +1419,7 @@ fn run_compare(args: &CompareArgs) -> Result<(), String> {
         }
         eprintln!("{name}: rendering {} s", args.seconds);
         let settings = RenderSettings {
-            integrator: options.integrator(method, &prepared.plan, prepared.device),
+            integrator: options.integrator(method, &prepared.plan),
             budget: Budget::Seconds(args.seconds),
             seed: options.seed,
             train_seconds: options.train_seconds,
