@@ -77,7 +77,10 @@ pub use focal::{FocalArrival, FocalGuide, FocalGuideSettings, FocalRecord};
 #[cfg(feature = "hemisphere")]
 pub use hemisphere::{HemisphereGrid, HemisphereGridSettings, HemisphereMapping, PatchLayout, ProbeId, ProbeSet};
 #[cfg(feature = "lights")]
-pub use lights::{LightCell, LightChoice, LightGuide, LightGuideSettings, LightUpdateRule};
+pub use lights::{
+    GateCell, LightCell, LightChoice, LightGuide, LightGuideSettings, LightUpdateRule, NextEventGate,
+    NextEventGateSettings,
+};
 #[cfg(feature = "mixture")]
 pub use mixture::{GaussianMixture, GaussianMixtureSettings, MixtureRegion};
 #[cfg(feature = "tree")]

@@ -7,9 +7,9 @@
 use glam::{Vec2, Vec3};
 use guiding_core::environment::{EnvCell, EnvSample};
 use guiding_core::{
-    DirectionalDistribution, EnvTileGuide, FocalArrival, FocalGuide, FocalRecord, Guide, Hit, IntegralEstimator,
-    Intersector, Lambertian, LightCell, LightGuide, Pcg32, Ray, SampledDirection, ScatteringFunction, StrategyArrival,
-    StrategyShares,
+    DirectionalDistribution, EnvTileGuide, FocalArrival, FocalGuide, FocalRecord, GateCell, Guide, Hit,
+    IntegralEstimator, Intersector, Lambertian, LightCell, LightGuide, NextEventGate, Pcg32, Ray, SampledDirection,
+    ScatteringFunction, StrategyArrival, StrategyShares,
 };
 
 use crate::color::luminance;
@@ -354,6 +354,8 @@ pub struct PathTracer<'a, I: Intersector, G: Guide> {
     guide_shares: Option<&'a StrategyShares>,
     /// The learned light selection, when `settings.light_selection` is `Learned`.
     light_guide: Option<&'a LightGuide>,
+    /// The next-event gate (guided methods on the CPU).
+    gate: Option<&'a NextEventGate>,
     /// The learned environment sampling, when `settings.environment_sampling` is `Tiles`.
     environment_guide: Option<&'a EnvTileGuide>,
     settings: IntegratorSettings,
@@ -364,6 +366,14 @@ pub struct PathTracer<'a, I: Intersector, G: Guide> {
     /// The guide learns from the path's own continuation (no integral estimate at the
     /// next vertex: every vertex carries its successor's target back).
     carries_path: bool,
+}
+
+/// A vertex's cells in the light guide and the next-event gate: next-event estimation
+/// there, and the MIS weight of emission found from there, read both.
+#[derive(Clone, Copy, Debug, Default)]
+struct NeeCells {
+    light: Option<LightCell>,
+    gate: Option<GateCell>,
 }
 
 /// Most masked surfaces a ray passes through before it counts as blocked.
@@ -391,9 +401,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         };
         let guide = if settings.method.uses_guide() { guide } else { None };
         let focal = focal.filter(|_| settings.method.uses_guide() && settings.focal_probability > 0.0);
-        // The light guide selects lights where selection is learned, and gates next-event
-        // estimation where its gate is on.
-        let light_guide = light_guide.filter(|g| settings.light_selection == LightSelection::Learned || g.gates());
+        let light_guide = light_guide.filter(|_| settings.light_selection == LightSelection::Learned);
         let environment_guide =
             environment_guide.filter(|_| settings.environment_sampling == EnvironmentSampling::Tiles);
         let masks = scene.has_masks();
@@ -405,6 +413,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             focal,
             guide_shares: None,
             light_guide,
+            gate: None,
             environment_guide,
             settings,
             ray_epsilon,
@@ -412,6 +421,13 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             masks,
             carries_path,
         }
+    }
+
+    /// The tracer with a next-event gate (used where the method estimates next-event
+    /// light).
+    pub fn with_gate(mut self, gate: Option<&'a NextEventGate>) -> Self {
+        self.gate = gate.filter(|_| self.settings.method.uses_nee());
+        self
     }
 
     /// The tracer with the directional guide's learned shares (used where
@@ -476,10 +492,10 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
     }
 
     /// Density with which next-event estimation produces direction `wi` towards an
-    /// emitter hit at `point` on `triangle`, seen from `from`.
+    /// emitter hit at `point` (by `hit`), seen from `from`.
     /// `cell` is the light guide's cell of `from`.
-    fn light_pdf(&self, triangle: u32, from: Vec3, cell: Option<LightCell>, point: Vec3, normal: Vec3) -> f32 {
-        let Some(light) = self.scene.lights.light_of_triangle(triangle) else { return 0.0 };
+    fn light_pdf(&self, hit: &Hit, from: Vec3, cell: Option<LightCell>, point: Vec3, normal: Vec3) -> f32 {
+        let Some(light) = self.scene.lights.light_at(hit.primitive, hit.barycentrics) else { return 0.0 };
         (1.0 - self.environment_choice)
             * self.selection_probability(cell, light)
             * self.scene.lights.point_pdf(light, from, point, normal)
@@ -548,7 +564,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         let mut roulette_throughput = Vec3::ONE;
         // The previous vertex: its position, the pdf of the direction it sampled, whether
         // that direction came from a delta lobe, and its light guide cell.
-        let mut previous: Option<(Vec3, f32, bool, Option<LightCell>)> = None;
+        let mut previous: Option<(Vec3, f32, bool, NeeCells)> = None;
         counters.paths += 1;
         for depth in 0..settings.max_depth {
             counters.rays += 1;
@@ -560,9 +576,9 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                 if let Some(environment) = &self.scene.environment {
                     let emitted = environment.radiance(ray.direction);
                     let weight = match previous {
-                        Some((from, pdf, false, cell)) if settings.method.uses_nee() => power_heuristic(
+                        Some((from, pdf, false, cells)) if settings.method.uses_nee() => power_heuristic(
                             pdf,
-                            self.next_event_probability(cell)
+                            self.next_event_probability(cells.gate)
                                 * self.environment_choice
                                 * self.environment_pdf(environment, from, ray.direction),
                         ),
@@ -585,10 +601,10 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             // Emission from the front face.
             if material.is_emissive() && geometric_normal.dot(wo) > 0.0 {
                 let weight = match previous {
-                    Some((from, pdf, false, cell)) if settings.method.uses_nee() => power_heuristic(
+                    Some((from, pdf, false, cells)) if settings.method.uses_nee() => power_heuristic(
                         pdf,
-                        self.next_event_probability(cell)
-                            * self.light_pdf(hit.primitive, from, cell, point, geometric_normal),
+                        self.next_event_probability(cells.gate)
+                            * self.light_pdf(&hit, from, cells.light, point, geometric_normal),
                     ),
                     _ => 1.0,
                 };
@@ -644,17 +660,21 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             let focal_share = focal.map_or(0.0, |f| f.selection_probability(point).min(settings.focal_probability));
             // Learning measures the boxes' share from every direction, sampled by them or not.
             let focal = focal.filter(|_| focal_share > 0.0 || learning);
-            // Next-event estimation, and the light guide's cell it and the MIS weight of
-            // emission found from here share.
-            let light_cell = match self.light_guide {
-                Some(guide) if settings.method.uses_nee() && !delta => guide.cell(point),
-                _ => None,
+            // Next-event estimation, and the cells it and the MIS weight of emission found
+            // from here share.
+            let nee_cells = if settings.method.uses_nee() && !delta {
+                NeeCells {
+                    light: self.light_guide.and_then(|guide| guide.cell(point)),
+                    gate: self.gate.and_then(|gate| gate.cell(point)),
+                }
+            } else {
+                NeeCells::default()
             };
             if settings.method.uses_nee() && !delta {
                 let direct = self.direct_light(
                     material,
                     &shading,
-                    (point, light_cell),
+                    (point, nee_cells),
                     geometric_normal,
                     wo,
                     (distribution.as_ref(), guide_share, focal_share),
@@ -784,7 +804,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                 });
             }
             ray = Ray::new(self.spawn(point, geometric_normal, wi), wi);
-            previous = Some((point, mis_pdf, sampled_delta, light_cell));
+            previous = Some((point, mis_pdf, sampled_delta, nee_cells));
         }
         if radiance.max_element() > 0.0 {
             counters.nonzero_paths += 1;
@@ -832,7 +852,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         &self,
         material: &Material,
         shading: &ShadingFrame,
-        (point, cell): (Vec3, Option<LightCell>),
+        (point, cells): (Vec3, NeeCells),
         geometric_normal: Vec3,
         wo: Vec3,
         (distribution, guide_share, focal_share): (Option<&G::Distribution<'_>>, f32, f32),
@@ -843,7 +863,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         let (u_choice, u_select, u) = (rng.next_f32(), rng.next_f32(), rng.next_vec2());
         // The gate may leave this vertex's light to the scattered direction; the number is
         // drawn only where it can, so ungated paths keep their random streams.
-        let gate = self.next_event_probability(cell);
+        let gate = self.next_event_probability(cells.gate);
         if gate < 1.0 && rng.next_f32() >= gate {
             return Vec3::ZERO;
         }
@@ -871,9 +891,9 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                 }
             }
         } else {
-            let Some((light, probability)) = self.select_light(cell, u_select) else { return Vec3::ZERO };
-            let Some(s) = self.scene.lights.sample_point(light, &self.scene.triangles, point, u) else {
-                self.learn_light(cell, light, 0.0, false, counters.paths);
+            let Some((light, probability)) = self.select_light(cells.light, u_select) else { return Vec3::ZERO };
+            let Some(s) = self.scene.lights.sample_point(light, point, u) else {
+                self.learn_light(cells, light, 0.0, false, counters.paths);
                 return Vec3::ZERO;
             };
             chosen = Some((light, s.pdf));
@@ -888,7 +908,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         let f = material.eval(shading, wo, wi);
         if f == Vec3::ZERO {
             if let Some((light, _)) = chosen {
-                self.learn_light(cell, light, 0.0, false, counters.paths);
+                self.learn_light(cells, light, 0.0, false, counters.paths);
             }
             if let Some((cell, sample)) = tile {
                 self.learn_environment(cell, &sample, Vec3::ZERO);
@@ -910,7 +930,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         let occluded = transmittance <= 0.0;
         if let Some((light, point_pdf)) = chosen {
             // Eq. (3)'s ‖C‖∞: the unshadowed contribution of the whole light.
-            self.learn_light(cell, light, (f * emitted / point_pdf).max_element(), !occluded, counters.paths);
+            self.learn_light(cells, light, (f * emitted / point_pdf).max_element(), !occluded, counters.paths);
         }
         if let Some((cell, sample)) = tile {
             self.learn_environment(cell, &sample, f * transmittance);
@@ -927,23 +947,23 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
     /// gate where it has one, else 1. Emission found by a scattered direction is weighed
     /// by MIS against this times the light pdf, so a vertex whose shadow ray the gate
     /// skipped leaves its light to that direction, unbiased.
-    fn next_event_probability(&self, cell: Option<LightCell>) -> f32 {
-        match self.light_guide {
-            Some(guide) if guide.gates() => cell.map_or(1.0, |cell| guide.next_event_probability(cell)),
+    fn next_event_probability(&self, cell: Option<GateCell>) -> f32 {
+        match (self.gate, cell) {
+            (Some(gate), Some(cell)) => gate.probability(cell),
             _ => 1.0,
         }
     }
 
-    /// Teaches the light guide one shadow ray: its V where lights are selected as
-    /// learned, else (in learning passes, from one path in [`GATE_PATH_STRIDE`]) only the
-    /// gate's count.
-    /// `cell` is the light guide's cell of the shadow ray's origin.
-    fn learn_light(&self, cell: Option<LightCell>, light: u32, contribution: f32, unoccluded: bool, path: u64) {
-        if let (Some(guide), Some(cell)) = (self.light_guide, cell) {
-            if self.settings.light_selection == LightSelection::Learned {
-                guide.update(cell, light, contribution, unoccluded);
-            } else if self.settings.learn && path % GATE_PATH_STRIDE == 0 {
-                guide.record_shadow_ray(cell, unoccluded);
+    /// Teaches one shadow ray from a vertex in `cells` to `light`: the light guide's V
+    /// where lights are selected as learned, and (in learning passes, from one path in
+    /// [`GATE_PATH_STRIDE`]) the gate's count.
+    fn learn_light(&self, cells: NeeCells, light: u32, contribution: f32, unoccluded: bool, path: u64) {
+        if let (Some(guide), Some(cell)) = (self.light_guide, cells.light) {
+            guide.update(cell, light, contribution, unoccluded);
+        }
+        if let (Some(gate), Some(cell)) = (self.gate, cells.gate) {
+            if self.settings.learn && path % GATE_PATH_STRIDE == 0 {
+                gate.record(cell, unoccluded);
             }
         }
     }

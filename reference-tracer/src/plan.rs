@@ -10,6 +10,24 @@ use crate::scene::Scene;
 /// would only cost time.
 pub const LEARNED_SELECTION_MIN_LIGHTS: usize = 8;
 
+/// Lights `--light-split auto` aims at for guided methods: each emissive triangle of a
+/// scene with few is cut into parts, so that learned selection can pick the part of an
+/// emitter a region actually sees.
+pub const AUTO_SPLIT_LIGHTS: usize = 64;
+
+/// Most segments per edge `--light-split auto` cuts an emissive triangle into.
+pub const AUTO_SPLIT_MAX: u32 = 8;
+
+/// Segments per edge that make `emissive_triangles` triangles at least
+/// [`AUTO_SPLIT_LIGHTS`] lights (at most [`AUTO_SPLIT_MAX`]; 1 where there are that many).
+pub fn auto_light_split(emissive_triangles: usize) -> u32 {
+    if emissive_triangles == 0 {
+        return 1;
+    }
+    let split = (AUTO_SPLIT_LIGHTS as f64 / emissive_triangles as f64).sqrt().ceil() as u32;
+    split.clamp(1, AUTO_SPLIT_MAX)
+}
+
 /// What the plan decides from: facts of the scene.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct SceneFacts {
@@ -21,6 +39,9 @@ pub struct SceneFacts {
     pub delta_triangles: usize,
     /// Emissive triangles.
     pub area_lights: usize,
+    /// Lights next-event estimation picks from: the emissive triangles, or the parts
+    /// they are cut into.
+    pub light_parts: usize,
     /// Whether there is an environment.
     pub environment: bool,
     /// Whether the environment has a sun.
@@ -33,7 +54,8 @@ impl SceneFacts {
     /// The facts of `scene`.
     pub fn of(scene: &Scene) -> Self {
         let mut facts = SceneFacts {
-            area_lights: scene.lights.len(),
+            area_lights: scene.lights.len() / (scene.lights.split_count() as usize).pow(2),
+            light_parts: scene.lights.len(),
             environment: scene.environment.is_some(),
             sun: scene.environment.as_ref().is_some_and(|e| e.sun.is_some()),
             ..Default::default()
@@ -94,7 +116,11 @@ impl GuidePlan {
         requested_environment: Option<EnvironmentSampling>,
     ) -> Self {
         let facts = SceneFacts::of(scene);
-        let lights = facts.area_lights;
+        let lights = facts.light_parts;
+        let lights_named = match scene.lights.split_count() {
+            1 => format!("{lights} emissive triangles"),
+            n => format!("{} emissive triangles cut into {} parts each: {lights} lights", facts.area_lights, n * n),
+        };
         let guidable = facts.diffuse_triangles + facts.glossy_triangles > 0;
         let mut reasons = vec![facts.describe()];
         reasons.push(match (directions, guidable) {
@@ -115,11 +141,11 @@ impl GuidePlan {
                 LightSelection::Power
             }
             None if lights < LEARNED_SELECTION_MIN_LIGHTS => {
-                reasons.push(format!("light selection: power ({lights} emissive triangles; no learned selection)"));
+                reasons.push(format!("light selection: power ({lights_named}; no learned selection)"));
                 LightSelection::Power
             }
             None => {
-                reasons.push(format!("light selection: learned ({lights} emissive triangles)"));
+                reasons.push(format!("light selection: learned ({lights_named})"));
                 LightSelection::Learned
             }
         };

@@ -5,7 +5,9 @@
 use std::time::Instant;
 
 use glam::Vec3;
-use guiding_core::{EnvTileGuide, FocalGuide, Guide, HemisphereGrid, Intersector, LightGuide, Pcg32, StrategyShares};
+use guiding_core::{
+    EnvTileGuide, FocalGuide, Guide, HemisphereGrid, Intersector, LightGuide, NextEventGate, Pcg32, StrategyShares,
+};
 use rayon::prelude::*;
 
 use crate::film::{Combine, Film};
@@ -127,13 +129,15 @@ pub struct Learners<'a, G: Guide = HemisphereGrid> {
     pub guide_shares: Option<&'a mut StrategyShares>,
     /// Learned light selection (`LightSelection::Learned`).
     pub lights: Option<&'a mut LightGuide>,
+    /// The next-event gate (guided methods on the CPU); learns in learning passes.
+    pub gate: Option<&'a mut NextEventGate>,
     /// Learned environment sampling (`EnvironmentSampling::Tiles`).
     pub environment: Option<&'a mut EnvTileGuide>,
 }
 
 impl<G: Guide> Default for Learners<'_, G> {
     fn default() -> Self {
-        Self { directions: None, focal: None, guide_shares: None, lights: None, environment: None }
+        Self { directions: None, focal: None, guide_shares: None, lights: None, gate: None, environment: None }
     }
 }
 
@@ -151,6 +155,7 @@ pub fn render<I: Intersector, G: Guide>(
         mut focal,
         mut guide_shares,
         lights: mut light_guide,
+        mut gate,
         environment: mut environment_guide,
     } = learners;
     let (width, height) = (scene.camera.width as usize, scene.camera.height as usize);
@@ -177,7 +182,8 @@ pub fn render<I: Intersector, G: Guide>(
             environment_guide.as_deref(),
             integrator,
         )
-        .with_guide_shares(guide_shares.as_deref());
+        .with_guide_shares(guide_shares.as_deref())
+        .with_gate(gate.as_deref());
         let pass_seed = pass_seed(settings.seed, pass);
         // Rows come back in order, so the pass sum is added up in the same order on every
         // run: renders that do not learn are reproducible to the last bit.
@@ -230,9 +236,12 @@ pub fn render<I: Intersector, G: Guide>(
         if let Some(light_guide) = light_guide.as_deref_mut() {
             if settings.integrator.light_selection == LightSelection::Learned {
                 light_guide.rebuild();
-            } else if integrator.learn && light_guide.gates() {
-                // The gate counts only in learning passes: nothing to refit after others.
-                light_guide.rebuild_gate();
+            }
+        }
+        if let Some(gate) = gate.as_deref_mut() {
+            // The gate counts only in learning passes: nothing to refit after others.
+            if integrator.learn {
+                gate.rebuild();
             }
         }
         let learns_environment = settings.integrator.environment_sampling == EnvironmentSampling::Tiles;

@@ -8,7 +8,7 @@ mod support;
 
 use guiding_core::{
     GaussianMixtureSettings, HemisphereGridSettings, IntegralEstimator, IrradianceVolumeSettings, LearningRate,
-    LightGuideSettings, SpatialDirectionalTreeSettings, UpdateRule,
+    NextEventGateSettings, SpatialDirectionalTreeSettings, UpdateRule,
 };
 use reference_tracer::cli::{prepare_with_lights, LightRequest};
 use reference_tracer::directional_guide::DirectionalGuide;
@@ -77,6 +77,47 @@ fn white_furnace_converges_to_le_over_one_minus_albedo() {
         assert!(
             (estimate.mean - expected).abs() <= tolerance,
             "{} {light_selection:?}: {} ± {} vs Le/(1-ρ) = {expected}",
+            method.name(),
+            estimate.mean,
+            estimate.standard_error
+        );
+        assert!(estimate.standard_error < 0.02 * expected, "{}: too noisy to mean anything", method.name());
+    }
+}
+
+/// Every wall of the furnace cut into sixteen lights, picked by learned selection: each
+/// scattered direction hits an emitter, whose MIS weight needs the probability of the
+/// very part it hit.
+#[test]
+fn a_furnace_of_split_lights_converges_to_le_over_one_minus_albedo() {
+    let (emission, albedo) = (0.5f32, 0.6f32);
+    let expected = emission as f64 / (1.0 - albedo as f64);
+    let scene = furnace_scene(emission, albedo);
+    for method in [Method::Nee, Method::GuidedNee] {
+        let integrator = reference_tracer::integrator::IntegratorSettings {
+            max_depth: 64,
+            light_selection: LightSelection::Learned,
+            ..settings(method)
+        };
+        let mut lights = LightRequest::new(Some(LightSelection::Learned), None, true);
+        lights.split = Some(4);
+        let guide = method.uses_guide().then(|| HemisphereGridSettings { probe_count: Some(60), ..Default::default() });
+        let mut prepared =
+            prepare_with_lights(&scene, IntersectorChoice::default(), guide.map(Into::into), lights).unwrap();
+        assert_eq!(prepared.scene.lights.len(), 12 * 16);
+        let render = RenderSettings {
+            integrator,
+            budget: Budget::SamplesPerPixel(48),
+            seed: 5,
+            train_seconds: 0.0,
+            schedule: Schedule::Online,
+            combine: reference_tracer::film::Combine::default(),
+        };
+        let (_, statistics) = prepared.render(&render, |_| {}).unwrap();
+        let estimate = mean_estimate(&statistics);
+        assert!(
+            (estimate.mean - expected).abs() <= 4.0 * estimate.standard_error,
+            "{} over split lights: {} ± {} vs Le/(1-ρ) = {expected}",
             method.name(),
             estimate.mean,
             estimate.standard_error
@@ -253,7 +294,11 @@ fn assert_focal_agrees(scene: &std::path::Path, spp: u32, reference_spp: u32, ga
         let mut lights =
             LightRequest::new(Some(integrator.light_selection), Some(integrator.environment_sampling), true);
         // A coarse grid, so that its cells see enough shadow rays in a small render.
-        lights.settings = LightGuideSettings { gate_scale, budget_bytes: 4 << 10, ..lights.settings };
+        lights.gate = (gate_scale > 0.0).then_some(NextEventGateSettings {
+            scale: gate_scale,
+            budget_bytes: 1 << 10,
+            ..Default::default()
+        });
         let mut prepared = prepare_with_lights(scene, IntersectorChoice::default(), guide, lights).unwrap();
         let render = RenderSettings {
             integrator,
@@ -271,10 +316,9 @@ fn assert_focal_agrees(scene: &std::path::Path, spp: u32, reference_spp: u32, ga
         let for_boxes = gate_scale == 0.0 && combine == Combine::default();
         assert!(boxes > 0 || !for_boxes, "{name}: the focal guide learned no boxes");
         if gate_scale > 0.0 {
-            let lights = prepared.light_guide.as_ref().expect("a gate needs its light guide");
-            let closed = (0..lights.cell_count() as u32)
-                .filter(|&c| lights.next_event_probability(guiding_core::LightCell(c)) < 1.0)
-                .count();
+            let gate = prepared.gate.as_ref().expect("the gate was built");
+            let closed =
+                (0..gate.cell_count() as u32).filter(|&c| gate.probability(guiding_core::GateCell(c)) < 1.0).count();
             assert!(closed > 0 || !gate_closes, "{name}: the gate never closed");
         }
         let mut estimate = mean_estimate(&statistics);
@@ -286,6 +330,44 @@ fn assert_focal_agrees(scene: &std::path::Path, spp: u32, reference_spp: u32, ga
         }
         support::assert_agree(&format!("{name} vs nee"), &estimate, &reference);
     }
+}
+
+/// Emitters cut into parts that learned selection picks one by one (emission found by
+/// scattering is weighed by the part it hits), beside the gate and a focal guide that
+/// deposits its segments exactly: guided-nee's mean is nee's.
+fn assert_split_lights_agree(scene: &std::path::Path, spp: u32, reference_spp: u32) {
+    let reference = mean_estimate(&render_scene(scene, settings(Method::Nee), None, reference_spp, 17));
+    let integrator = reference_tracer::integrator::IntegratorSettings {
+        focal_probability: 0.5,
+        focal_learning_share: 1.0,
+        guide_probability: 0.0,
+        light_selection: LightSelection::Learned,
+        ..settings(Method::GuidedNee)
+    };
+    let mut lights = LightRequest::new(None, Some(integrator.environment_sampling), true);
+    lights.split = Some(4);
+    lights.settings.budget_bytes = 64 << 10;
+    lights.gate = Some(NextEventGateSettings { budget_bytes: 1 << 10, ..Default::default() });
+    let mut prepared = prepare_with_lights(scene, IntersectorChoice::default(), None, lights).unwrap();
+    prepared.focal_settings.deposits_per_segment = 0;
+    assert_eq!(prepared.scene.lights.split_count(), 4);
+    assert!(prepared.light_guide.as_ref().is_some_and(|g| g.light_count() == prepared.scene.lights.len()));
+    let render = RenderSettings {
+        integrator,
+        budget: Budget::SamplesPerPixel(spp),
+        seed: 47,
+        train_seconds: 0.0,
+        schedule: Schedule::Iterative,
+        combine: reference_tracer::film::Combine::default(),
+    };
+    let (_, statistics) = prepared.render(&render, |_| {}).unwrap();
+    support::assert_agree("guided-nee over split lights vs nee", &mean_estimate(&statistics), &reference);
+}
+
+#[test]
+fn cornell_and_door_agree_over_split_lights() {
+    assert_split_lights_agree(&support::repository_scene("cornell", 32, 32), 128, 256);
+    assert_split_lights_agree(&support::repository_scene("door", 32, 24), 256, 512);
 }
 
 #[test]
@@ -397,7 +479,7 @@ fn gated_next_event_estimation_agrees_with_lights_and_an_environment() {
     let reference = mean_estimate(&render_scene(&scene, with(Method::Nee), None, 512, 71));
     let integrator = with(Method::GuidedNee);
     let mut lights = LightRequest::new(Some(integrator.light_selection), Some(integrator.environment_sampling), true);
-    lights.settings = LightGuideSettings { gate_scale: 5.0, budget_bytes: 4 << 10, ..lights.settings };
+    lights.gate = Some(NextEventGateSettings { scale: 5.0, budget_bytes: 1 << 10, ..Default::default() });
     let guide = HemisphereGridSettings { probe_count: Some(400), ..Default::default() };
     let mut prepared = prepare_with_lights(&scene, IntersectorChoice::default(), Some(guide.into()), lights).unwrap();
     let render = RenderSettings {
@@ -409,10 +491,8 @@ fn gated_next_event_estimation_agrees_with_lights_and_an_environment() {
         combine: reference_tracer::film::Combine::default(),
     };
     let (_, statistics) = prepared.render(&render, |_| {}).unwrap();
-    let gate = prepared.light_guide.as_ref().expect("the gate's light guide was built");
-    let closed = (0..gate.cell_count() as u32)
-        .filter(|&c| gate.next_event_probability(guiding_core::LightCell(c)) < 1.0)
-        .count();
+    let gate = prepared.gate.as_ref().expect("the gate was built");
+    let closed = (0..gate.cell_count() as u32).filter(|&c| gate.probability(guiding_core::GateCell(c)) < 1.0).count();
     assert!(closed > 0, "the gate never closed");
     support::assert_agree("guided-nee gated vs nee", &mean_estimate(&statistics), &reference);
 }

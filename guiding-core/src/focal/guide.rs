@@ -125,7 +125,7 @@ pub struct FocalArrival {
 /// The parameters `[t0, t1]` of the ray `origin + t·direction` inside the box, with
 /// `1/direction` given; empty (t0 ≥ t1) when it misses. Infinite reciprocals of zero
 /// components work: such a ray is inside the slab or never.
-fn ray_box(origin: Vec3, inverse_direction: Vec3, low: Vec3, high: Vec3) -> (f32, f32) {
+pub(crate) fn ray_box(origin: Vec3, inverse_direction: Vec3, low: Vec3, high: Vec3) -> (f32, f32) {
     let a = (low - origin) * inverse_direction;
     let b = (high - origin) * inverse_direction;
     // A NaN (0·∞: the origin on a slab's plane with the ray along it) must not win:
@@ -206,8 +206,10 @@ impl FocalGuide {
             + self.selection.memory_bytes()
     }
 
-    /// Learns one segment: its weight × length is spread over the leaves it crosses, at
-    /// `deposits_per_segment` points stratified along it (`u` in [0, 1) places them).
+    /// Learns one segment: its weight × length is spread over the leaves it crosses,
+    /// exactly (each leaf gets weight × the length inside it) or, where
+    /// `deposits_per_segment` is above 0, at that many points stratified along it (`u` in
+    /// [0, 1) places them).
     /// Lock-free; safe from many threads during a pass.
     pub fn record(&self, record: &FocalRecord, u: f32) -> UpdateOutcome {
         let weight = match classify_target(record.weight) {
@@ -231,6 +233,10 @@ impl FocalGuide {
             return UpdateOutcome::OutsideDomain;
         }
         let count = self.settings.deposits_per_segment;
+        if count == 0 {
+            self.octree.deposit_along(record.origin, direction, (t0, t1), weight);
+            return UpdateOutcome::Accepted;
+        }
         let step = (t1 - t0) / count as f32;
         let amount = weight * step;
         let u = if (0.0..1.0).contains(&u) { u } else { 0.5 };

@@ -26,7 +26,8 @@ pub struct FocalGuideSettings {
     /// 4 × `max_boxes` leaves); 0 keeps every leaf its own box (the densest
     /// `max_boxes`).
     pub merge_ratio: f32,
-    /// Points per recorded segment at which its mass is deposited (stratified along it).
+    /// Points per recorded segment at which its mass is deposited (stratified along it);
+    /// 0 deposits it exactly, into every leaf the segment crosses by the length inside.
     pub deposits_per_segment: u32,
     /// Cells of the selection grid along the scene's longest side (the others in
     /// proportion): each cell learns, from the directions its vertices drew, which
@@ -69,7 +70,7 @@ impl FocalGuideSettings {
             "0 or finite and at least 1",
         )?;
         let deposits = self.deposits_per_segment;
-        require((1..=64).contains(&deposits), "deposits_per_segment", deposits as f64, "in 1..=64")?;
+        require(deposits <= 64, "deposits_per_segment", deposits as f64, "in 0..=64 (0: exact)")?;
         let cells = self.share_resolution;
         require((1..=64).contains(&cells), "share_resolution", cells as f64, "in 1..=64")
     }

@@ -12,10 +12,7 @@ use crate::cell_grid::CellGrid;
 use crate::error::Error;
 use crate::update_rule::{classify_target, UpdateOutcome};
 
-use super::settings::{LightGuideSettings, LightUpdateRule, ENTRY_BYTES, GATE_BYTES, MAX_LIGHTS};
-
-/// Shadow rays a cell needs before its gate closes below 1.
-const GATE_MIN_SHOTS: u32 = 64;
+use super::settings::{LightGuideSettings, LightUpdateRule, ENTRY_BYTES, MAX_LIGHTS};
 
 /// A cell of a [`LightGuide`]'s grid: the region [`LightGuide::cell`] returns.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -66,11 +63,6 @@ pub struct LightGuide {
     shots: Vec<AtomicU32>,
     /// Per (cell, light): the selection CDF of the last rebuild.
     cdf: Vec<f32>,
-    /// Per cell: shadow rays shot and arrived (the gate learns from them), and the
-    /// probability of next-event estimation since the last rebuild.
-    gate_shots: Vec<AtomicU32>,
-    gate_arrivals: Vec<AtomicU32>,
-    gate: Vec<f32>,
     rejected: AtomicUsize,
 }
 
@@ -87,7 +79,7 @@ impl LightGuide {
             return invalid("light_powers", p as f64, "finite and non-negative");
         }
         let lights = powers.len();
-        let bytes_per_cell = lights * ENTRY_BYTES + GATE_BYTES;
+        let bytes_per_cell = lights * ENTRY_BYTES;
         let grid = CellGrid::new(low, high, settings.resolution, settings.budget_bytes, bytes_per_cell)?;
         let cells = grid.cell_count();
         let entries = cells * lights;
@@ -103,9 +95,6 @@ impl LightGuide {
             updates: (0..entries).map(|_| AtomicU32::new(0)).collect(),
             shots: (0..entries).map(|_| AtomicU32::new(0)).collect(),
             cdf: vec![0.0; entries],
-            gate_shots: (0..cells).map(|_| AtomicU32::new(0)).collect(),
-            gate_arrivals: (0..cells).map(|_| AtomicU32::new(0)).collect(),
-            gate: vec![1.0; cells],
             rejected: AtomicUsize::new(0),
         };
         guide.rebuild();
@@ -138,28 +127,6 @@ impl LightGuide {
         cdf_probability(&self.cdf[self.row(cell)], light as usize)
     }
 
-    /// Whether the next-event gate is on (`gate_scale` > 0): only then can
-    /// [`next_event_probability`](Self::next_event_probability) fall below 1.
-    pub fn gates(&self) -> bool {
-        self.settings.gate_scale > 0.0
-    }
-
-    /// The probability with which a vertex in `cell` estimates next-event light (1 with
-    /// the gate off, or before the cell has seen enough shadow rays).
-    pub fn next_event_probability(&self, cell: LightCell) -> f32 {
-        self.gate.get(cell.0 as usize).copied().unwrap_or(1.0)
-    }
-
-    /// Counts one shadow ray from `cell` for the next-event gate alone (where lights are
-    /// selected otherwise); [`update`](Self::update) counts its rays itself.
-    pub fn record_shadow_ray(&self, cell: LightCell, unoccluded: bool) {
-        let Some(shots) = self.gate_shots.get(cell.0 as usize) else { return };
-        atomic_f32::increment_saturating(shots);
-        if unoccluded {
-            atomic_f32::increment_saturating(&self.gate_arrivals[cell.0 as usize]);
-        }
-    }
-
     /// Learns from one shadow ray from `cell` to `light`: `unoccluded` says whether it
     /// arrived, `contribution` is ‖C‖∞ of the unshadowed contribution (radiance, the
     /// light's whole area: divide by the pdf of the point chosen on it). NaN, infinite
@@ -177,9 +144,6 @@ impl LightGuide {
         };
         let index = self.row(cell).start + light as usize;
         atomic_f32::increment_saturating(&self.shots[index]);
-        if self.gates() {
-            self.record_shadow_ray(cell, unoccluded);
-        }
         let learn = |target: f32| atomic_f32::running_average(&self.values[index], &self.updates[index], target);
         match (self.settings.rule, unoccluded) {
             (LightUpdateRule::UnoccludedAverage, true) => learn(contribution),
@@ -194,10 +158,9 @@ impl LightGuide {
 
     /// Rebuilds every cell's selection CDF from what it learned: probability
     /// (1 - power_mix - uniform_mix)·V/ΣV + power_mix·power share + uniform_mix/lights
-    /// (cells that learned nothing yet use power and uniform shares alone), and every
-    /// cell's next-event gate. Call between passes.
+    /// (cells that learned nothing yet use power and uniform shares alone). Call between
+    /// passes.
     pub fn rebuild(&mut self) {
-        self.rebuild_gate();
         let (power_mix, uniform_mix) = (self.settings.power_mix as f64, self.settings.uniform_mix as f64);
         let mut learned = vec![0.0f64; self.lights];
         for cell in 0..self.cell_count() {
@@ -224,20 +187,6 @@ impl LightGuide {
         }
     }
 
-    /// Rebuilds only the next-event gate (what [`rebuild`](Self::rebuild) does besides
-    /// the selection CDFs), for a guide that gates but does not select.
-    pub fn rebuild_gate(&mut self) {
-        let (scale, floor) = (self.settings.gate_scale, self.settings.gate_floor);
-        for ((gate, shots), arrivals) in self.gate.iter_mut().zip(&self.gate_shots).zip(&self.gate_arrivals) {
-            let (shots, arrivals) = (shots.load(Ordering::Relaxed), arrivals.load(Ordering::Relaxed));
-            *gate = if scale > 0.0 && shots >= GATE_MIN_SHOTS {
-                (scale * arrivals as f32 / shots as f32).clamp(floor, 1.0)
-            } else {
-                1.0
-            };
-        }
-    }
-
     /// Cells along x, y and z.
     pub fn resolution(&self) -> [u32; 3] {
         self.grid.resolution()
@@ -255,7 +204,7 @@ impl LightGuide {
 
     /// Bytes held by the tables.
     pub fn memory_bytes(&self) -> usize {
-        self.cell_count() * (self.lights * ENTRY_BYTES + GATE_BYTES) + self.lights * 4 + core::mem::size_of::<Self>()
+        self.cell_count() * self.lights * ENTRY_BYTES + self.lights * 4 + core::mem::size_of::<Self>()
     }
 
     /// Contributions rejected for being NaN, infinite or negative.
@@ -327,47 +276,6 @@ mod tests {
             assert_ne!(far, cell);
             let q = g.probability(far, 0);
             assert!((q - 1.0 / 3.0).abs() < 1e-6, "{q}");
-        }
-    }
-
-    #[test]
-    fn the_gate_closes_where_shadow_rays_never_arrive_and_stays_open_elsewhere() {
-        let settings = LightGuideSettings { gate_scale: 5.0, gate_floor: 0.1, ..Default::default() };
-        let mut g = guide(&[1.0], settings);
-        let (hidden, lit, half, young) = (
-            g.cell(Vec3::new(0.1, 0.1, 0.1)).unwrap(),
-            g.cell(Vec3::new(3.9, 1.9, 0.9)).unwrap(),
-            g.cell(Vec3::new(2.0, 1.0, 0.5)).unwrap(),
-            g.cell(Vec3::new(3.9, 0.1, 0.1)).unwrap(),
-        );
-        for i in 0..1000 {
-            g.update(hidden, 0, 0.0, false);
-            g.update(lit, 0, 1.0, true);
-            // One in twenty arrives: 5 × 0.05 = 0.25.
-            g.record_shadow_ray(half, i % 20 == 0);
-        }
-        for _ in 0..(GATE_MIN_SHOTS - 1) {
-            g.update(young, 0, 0.0, false);
-        }
-        for cell in [hidden, lit, half, young] {
-            assert_eq!(g.next_event_probability(cell), 1.0, "open until the first rebuild");
-        }
-        g.rebuild();
-        assert_eq!(g.next_event_probability(hidden), 0.1, "closed to the floor");
-        assert_eq!(g.next_event_probability(lit), 1.0);
-        assert!((g.next_event_probability(half) - 0.25).abs() < 1e-6, "{}", g.next_event_probability(half));
-        assert_eq!(g.next_event_probability(young), 1.0, "too few rays to judge");
-        // Off by default: every cell shoots.
-        let mut off = guide(&[1.0], LightGuideSettings::default());
-        for _ in 0..1000 {
-            off.update(hidden, 0, 0.0, false);
-        }
-        off.rebuild();
-        assert_eq!(off.next_event_probability(hidden), 1.0);
-        assert_eq!(off.next_event_probability(LightCell(u32::MAX)), 1.0);
-        let bad = |gate_scale, gate_floor| LightGuideSettings { gate_scale, gate_floor, ..Default::default() };
-        for settings in [bad(f32::NAN, 0.1), bad(-1.0, 0.1), bad(1.0, 0.0), bad(1.0, 1.5)] {
-            assert!(settings.validate().is_err(), "{settings:?}");
         }
     }
 

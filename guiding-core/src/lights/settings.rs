@@ -34,14 +34,6 @@ pub struct LightGuideSettings {
     pub uniform_mix: f32,
     /// How V learns.
     pub rule: LightUpdateRule,
-    /// The next-event gate's scale, ≥ 0: a cell whose share of arriving shadow rays is v
-    /// estimates next-event light with probability clamp(gate_scale · v, gate_floor, 1)
-    /// and otherwise leaves its light to the scattered direction (weighted by MIS with
-    /// the same probability, so the image stays unbiased). Where a light is hidden from
-    /// nearly everywhere (behind a door), most shadow rays are wasted; 0 always shoots.
-    pub gate_scale: f32,
-    /// The least probability the gate gives next-event estimation, in (0, 1].
-    pub gate_floor: f32,
 }
 
 impl Default for LightGuideSettings {
@@ -52,8 +44,6 @@ impl Default for LightGuideSettings {
             power_mix: 0.2,
             uniform_mix: 0.01,
             rule: LightUpdateRule::MeanContribution,
-            gate_scale: 0.0,
-            gate_floor: 0.1,
         }
     }
 }
@@ -65,9 +55,6 @@ pub const MAX_LIGHTS: usize = 1 << 20;
 /// Bytes per (cell, light) entry: V, its update count, the shadow-ray count and the CDF.
 pub(crate) const ENTRY_BYTES: usize = 16;
 
-/// Bytes per cell for the next-event gate: shadow rays shot and arrived, the probability.
-pub(crate) const GATE_BYTES: usize = 12;
-
 impl LightGuideSettings {
     /// Checks every setting's range.
     pub fn validate(&self) -> Result<(), Error> {
@@ -78,10 +65,6 @@ impl LightGuideSettings {
         check((0.0..=1.0).contains(&power), "power_mix", power as f64, "in [0, 1]")?;
         let uniform = self.uniform_mix;
         check(uniform > 0.0 && uniform <= 1.0, "uniform_mix", uniform as f64, "in (0, 1]")?;
-        check(power + uniform <= 1.0, "power_mix + uniform_mix", (power + uniform) as f64, "at most 1")?;
-        let scale = self.gate_scale;
-        check(scale.is_finite() && scale >= 0.0, "gate_scale", scale as f64, "finite and ≥ 0")?;
-        let floor = self.gate_floor;
-        check(floor > 0.0 && floor <= 1.0, "gate_floor", floor as f64, "in (0, 1]")
+        check(power + uniform <= 1.0, "power_mix + uniform_mix", (power + uniform) as f64, "at most 1")
     }
 }

@@ -196,6 +196,13 @@ impl Scene {
         })
     }
 
+    /// Cuts every emissive triangle into `split`² sub-triangles, each a light of its own
+    /// (see [`AreaLights::split`]); 1 makes every light a whole triangle again.
+    pub fn split_lights(&mut self, split: u32) {
+        let (materials, triangle_materials) = (&self.materials, &self.triangle_materials);
+        self.lights = AreaLights::split(&self.triangles, |i| materials[triangle_materials[i] as usize].emission, split);
+    }
+
     /// The material of triangle `triangle` (untextured).
     pub fn material(&self, triangle: u32) -> &Material {
         &self.materials[self.triangle_materials[triangle as usize] as usize]
