@@ -28,12 +28,12 @@ pub struct ProbeId(pub u32);
 /// Bytes of a grid's tables for `probes` probes of `patches` patches each, with the
 /// struct itself: per probe a position, a normal, two visit counts and the Lambertian
 /// sum (36 bytes); per patch Q, a visit count, a weight sum and a CDF entry (16 bytes);
-/// the lookup's bucket table; and the shared per-patch centre and cosine tables (16
+/// the lookup's bucket and candidate tables; and the shared per-patch centre and cosine tables (16
 /// bytes per patch).
 pub(crate) fn table_bytes(probes: usize, patches: usize) -> usize {
     let per_probe = 3 * 4 + 3 * 4 + 3 * 4 + patches * 16;
     probes.saturating_mul(per_probe)
-        + (ProbeLookup::bucket_count(probes) + 1) * 4
+        + ProbeLookup::bytes_for(probes)
         + patches * 16
         + core::mem::size_of::<HemisphereGrid>()
 }

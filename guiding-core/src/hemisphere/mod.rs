@@ -1,6 +1,7 @@
 //! The hemisphere grid (feature `hemisphere`): probes on the surfaces, each with a
 //! hemisphere of equal-area patches holding Q.
 
+mod candidate_table;
 mod grid;
 mod mapping;
 mod probe_lookup;

@@ -9,6 +9,8 @@ use alloc::vec;
 use alloc::vec::Vec;
 use glam::{IVec3, Vec3};
 
+use super::candidate_table::CandidateTable;
+
 /// Coordinates are clamped to ±2²⁰ cells so neighbour offsets never overflow.
 const MAX_CELL_COORDINATE: i32 = 1 << 20;
 
@@ -37,6 +39,9 @@ pub struct ProbeLookup {
     inverse_cell_size: f32,
     max_rings: u32,
     bucket_starts: Vec<u32>,
+    /// Cells of one probe spacing, each listing the probes within 0.75 spacings of it:
+    /// most queries end there.
+    candidates: CandidateTable,
 }
 
 impl ProbeLookup {
@@ -69,6 +74,7 @@ impl ProbeLookup {
             inverse_cell_size: 1.0 / cell_size,
             max_rings,
             bucket_starts: vec![0; Self::bucket_count(positions.len()) + 1],
+            candidates: CandidateTable::build(&[], origin, 1.0, 0.0),
         };
         let buckets: Vec<u32> = positions.iter().map(|&p| lookup.bucket(lookup.cell_of(p))).collect();
         for &b in &buckets {
@@ -83,6 +89,9 @@ impl ProbeLookup {
             order[next[b as usize] as usize] = probe as u32;
             next[b as usize] += 1;
         }
+        let sorted: Vec<Vec3> = order.iter().map(|&i| positions[i as usize]).collect();
+        let spacing = cell_size / CELL_SIZE_IN_SPACINGS;
+        lookup.candidates = CandidateTable::build(&sorted, origin, spacing, 0.75 * spacing);
         (lookup, order)
     }
 
@@ -108,7 +117,12 @@ impl ProbeLookup {
 
     /// Bytes held by the table.
     pub fn memory_bytes(&self) -> usize {
-        self.bucket_starts.capacity() * core::mem::size_of::<u32>()
+        self.bucket_starts.capacity() * core::mem::size_of::<u32>() + self.candidates.memory_bytes()
+    }
+
+    /// Bytes a lookup over `probe_count` probes holds, wherever they are.
+    pub fn bytes_for(probe_count: usize) -> usize {
+        (Self::bucket_count(probe_count) + 1) * core::mem::size_of::<u32>() + CandidateTable::bytes_for(probe_count)
     }
 
     fn cell_of(&self, p: Vec3) -> IVec3 {
@@ -129,6 +143,27 @@ impl ProbeLookup {
     /// shell r every unvisited probe is at least r·cell_size away, so the search stops
     /// as soon as the best distance is within that, and the result is the exact nearest.
     pub fn nearest(&self, query: Vec3, positions: &[Vec3], accept: impl Fn(usize) -> bool) -> Option<usize> {
+        self.nearest_candidate(query, positions, &accept).or_else(|| self.search(query, positions, accept))
+    }
+
+    /// The nearest admitted probe of the query's small cell's list, when it lies within
+    /// the reach inside which the list is complete (then it is the nearest of all).
+    #[inline]
+    fn nearest_candidate(&self, query: Vec3, positions: &[Vec3], accept: &impl Fn(usize) -> bool) -> Option<usize> {
+        let list = self.candidates.candidates(query)?;
+        let mut best: Option<(usize, f32)> = None;
+        for &probe in list {
+            let probe = probe as usize;
+            let d2 = positions[probe].distance_squared(query);
+            if best.is_none_or(|(_, best_d2)| d2 < best_d2) && accept(probe) {
+                best = Some((probe, d2));
+            }
+        }
+        best.filter(|&(_, d2)| d2 <= self.candidates.reach_squared()).map(|(probe, _)| probe)
+    }
+
+    /// [`nearest`](Self::nearest) by the shells of hash cells alone.
+    fn search(&self, query: Vec3, positions: &[Vec3], accept: impl Fn(usize) -> bool) -> Option<usize> {
         let mut best: Option<(usize, f32)> = None;
         let visit = |cell: IVec3, best: &mut Option<(usize, f32)>| {
             let b = self.bucket(cell) as usize;
@@ -204,6 +239,7 @@ impl ProbeLookup {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::hemisphere::probes::ProbeSet;
     use crate::low_discrepancy::Pcg32;
 
     #[test]
@@ -278,6 +314,50 @@ mod tests {
                 assert_eq!(sorted[found].distance_squared(query), expected);
             }
         }
+    }
+
+    /// The inside of a 2 × 1 × 3 box: twelve triangles facing in.
+    fn box_faces() -> Vec<crate::Triangle> {
+        let corner = |i: usize| Vec3::new((i & 1) as f32 * 2.0, ((i >> 1) & 1) as f32, (i >> 2) as f32 * 3.0);
+        let quads = [[0, 2, 6, 4], [1, 5, 7, 3], [0, 4, 5, 1], [2, 3, 7, 6], [0, 1, 3, 2], [4, 6, 7, 5]];
+        let mut triangles = Vec::new();
+        for q in quads {
+            let [a, b, c, d] = q.map(corner);
+            triangles.push(crate::Triangle::new(a, b, c));
+            triangles.push(crate::Triangle::new(a, c, d));
+        }
+        triangles
+    }
+
+    #[test]
+    fn most_queries_on_surfaces_end_in_their_cells_list_with_the_searched_probe() {
+        let faces = box_faces();
+        let probes = ProbeSet::place_on_triangles(&faces, 2000, false).unwrap();
+        let (lookup, order) = ProbeLookup::build(&probes.positions, probes.spacing, 8);
+        let sorted: Vec<Vec3> = order.iter().map(|&i| probes.positions[i as usize]).collect();
+        let normals: Vec<Vec3> = order.iter().map(|&i| probes.normals[i as usize]).collect();
+        // Queries uniform on the faces, admitting probes within 45° of their normal.
+        let mut rng = Pcg32::new(14, 0);
+        let (mut from_list, mut count) = (0, 0);
+        for _ in 0..4000 {
+            let face = &faces[(rng.next_f32() * faces.len() as f32) as usize % faces.len()];
+            let (mut u, mut v) = (rng.next_f32(), rng.next_f32());
+            if u + v > 1.0 {
+                (u, v) = (1.0 - u, 1.0 - v);
+            }
+            let [v0, v1, v2] = face.vertices;
+            let query = v0 + (v1 - v0) * u + (v2 - v0) * v;
+            let normal = face.normal().unwrap();
+            let accept = |i: usize| normals[i].dot(normal) >= 0.7;
+            let searched = lookup.search(query, &sorted, accept);
+            if let Some(found) = lookup.nearest_candidate(query, &sorted, &accept) {
+                from_list += 1;
+                assert_eq!(Some(found), searched);
+            }
+            assert_eq!(lookup.nearest(query, &sorted, accept), searched);
+            count += 1;
+        }
+        assert!(from_list * 10 > count * 9, "{from_list} of {count} from the lists");
     }
 
     #[test]
