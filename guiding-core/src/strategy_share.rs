@@ -55,6 +55,8 @@ pub struct StrategyShares {
     moments: Vec<[AtomicU32; CANDIDATES.len()]>,
     arrivals: Vec<AtomicU32>,
     shares: Vec<f32>,
+    /// Whether some cell's share is above 0 (since the last rebuild).
+    any: bool,
 }
 
 impl StrategyShares {
@@ -84,6 +86,7 @@ impl StrategyShares {
             moments: (0..count).map(|_| core::array::from_fn(|_| atomic_f32::new(0.0))).collect(),
             arrivals: (0..count).map(|_| atomic_f32::new(0.0)).collect(),
             shares: alloc::vec![0.0; count],
+            any: false,
         })
     }
 
@@ -104,6 +107,13 @@ impl StrategyShares {
     #[inline]
     pub fn share(&self, point: Vec3) -> f32 {
         self.cell(point).map_or(0.0, |cell| self.shares[cell])
+    }
+
+    /// Whether some cell gives the strategy a share above 0: where none does, a renderer
+    /// that is not learning can leave the strategy out without looking anything up.
+    #[inline]
+    pub fn any(&self) -> bool {
+        self.any
     }
 
     /// Learns how each candidate share would have served the vertex of `arrival`.
@@ -149,6 +159,7 @@ impl StrategyShares {
             }
             atomic_f32::update(arrivals, |n| 0.5 * n);
         }
+        self.any = self.shares.iter().any(|&s| s > 0.0);
     }
 
     /// Cells in the grid.
@@ -195,9 +206,11 @@ mod tests {
             };
             shares.record(&arrival);
         }
+        assert!(!shares.any(), "nothing before the first rebuild");
         shares.rebuild();
         assert_eq!(shares.share(good), *CANDIDATES.last().unwrap());
         assert_eq!(shares.share(blind), 0.0);
+        assert!(shares.any());
         // Bad input is refused, not learned.
         let bad = StrategyArrival {
             point: good,

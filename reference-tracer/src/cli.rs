@@ -702,6 +702,7 @@ impl TraceOptions {
             focal_learning_share: self.focal_learn,
             learned_guide_share: self.guide_share() == GuideShare::Learned,
             density_weighted_learning: true,
+            nee_weighs_guide: false,
             learn: true,
             light_selection: plan.light_selection,
             environment_sampling: plan.environment_sampling,

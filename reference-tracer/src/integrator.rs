@@ -93,6 +93,13 @@ pub struct IntegratorSettings {
     /// their solid angle) or without (`Guide::update`). The GPU tracer's tables learn
     /// without; the CPU renders checked against them turn this off.
     pub density_weighted_learning: bool,
+    /// Whether MIS between next-event estimation and scattering weighs a direction by the
+    /// scattering mixture with the guide's density in it (the power heuristic of the
+    /// two strategies' actual densities, a guide pdf per light sample) or by the BSDF's
+    /// share of the mixture alone (weights that still sum to one with the light's, so
+    /// the image stays unbiased, and no guide lookup per light sample). The GPU tracer
+    /// weighs with the guide; the CPU renders checked against its tables do too.
+    pub nee_weighs_guide: bool,
     /// Whether guided paths update the guide.
     pub learn: bool,
     /// How next-event estimation picks an area light.
@@ -113,6 +120,7 @@ impl Default for IntegratorSettings {
             focal_learning_share: 0.25,
             learned_guide_share: false,
             density_weighted_learning: true,
+            nee_weighs_guide: false,
             learn: true,
             light_selection: LightSelection::Power,
             environment_sampling: EnvironmentSampling::Luminance,
@@ -376,6 +384,15 @@ struct NeeCells {
     gate: Option<GateCell>,
 }
 
+/// The density MIS with next-event estimation weighs a scattered direction by (unless
+/// `nee_weighs_guide`): the BSDF's share of the scattering mixture, the guide's and the
+/// focal guide's terms left out. Any density both strategies share keeps their weights
+/// summing to one; this one needs no guide lookup per light sample. `guide_share` is 0
+/// where the vertex has no guide region.
+fn nee_partner_pdf(bsdf_pdf: f32, guide_share: f32, focal_share: f32) -> f32 {
+    (1.0 - guide_share - focal_share).max(0.0) * bsdf_pdf
+}
+
 /// Most masked surfaces a ray passes through before it counts as blocked.
 const MAX_MASK_CROSSINGS: u32 = 64;
 
@@ -622,6 +639,8 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             let guides_here = self.guide.is_some() && !delta && depth < settings.guide_depth;
             let guide_share = match self.guide_shares {
                 _ if !guides_here => 0.0,
+                // Frozen, and no region gives it a share: no lookup at all.
+                Some(shares) if !learning && !shares.any() => 0.0,
                 Some(shares) => shares.share(point).min(settings.guide_probability),
                 None => settings.guide_probability,
             };
@@ -655,8 +674,9 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                 (Some(guide), Some(region)) => Some(clock.time(|| guide.distribution(region))),
                 _ => None,
             };
-            // The focal guide's share of the scattering here (0 where it has no boxes).
-            let focal = self.focal.filter(|f| !delta && !f.boxes().is_empty());
+            // The focal guide's share of the scattering here (0 where it has no boxes, and
+            // left out altogether in frozen passes where no region aims at them).
+            let focal = self.focal.filter(|f| !delta && if learning { !f.boxes().is_empty() } else { f.aims() });
             let focal_share = focal.map_or(0.0, |f| f.selection_probability(point).min(settings.focal_probability));
             // Learning measures the boxes' share from every direction, sampled by them or not.
             let focal = focal.filter(|_| focal_share > 0.0 || learning);
@@ -706,8 +726,9 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             // exists, the BSDF otherwise; weight by the mixture pdf.
             let (u_choice, u_lobe, u) = (rng.next_f32(), rng.next_f32(), rng.next_vec2());
             // `mis_pdf` is what MIS with next-event estimation weighs by: the mixture
-            // without the focal term (any function both strategies share keeps the
-            // weights summing to one), which spares a focal pdf per light sample.
+            // without the focal term, or the BSDF's share alone (`nee_partner_pdf`); any
+            // function both strategies share keeps the weights summing to one, and these
+            // spare a focal (and a guide) pdf per light sample.
             let (mut focal_arrival, mut focal_pdf_pending, mut guide_arrival) = (None, false, None);
             let (wi, factor, bsdf_factor, pdf, mis_pdf, sampled_delta) = if delta {
                 let Some(s) = material.sample(&shading, wo, u, u_lobe) else { break };
@@ -744,8 +765,13 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                 focal_pdf_pending = focal.is_some() && focal_pdf.is_none();
                 let focal_pdf = focal_pdf.unwrap_or(0.0);
                 let bsdf_pdf = material.pdf(&shading, wo, wi);
-                let mis_pdf = self.mix_pdf(bsdf_pdf, guide_pdf.map(|g| (g, guide_share)), focal_share);
-                let pdf = mis_pdf + focal_share * focal_pdf;
+                let mixture = self.mix_pdf(bsdf_pdf, guide_pdf.map(|g| (g, guide_share)), focal_share);
+                let pdf = mixture + focal_share * focal_pdf;
+                let mis_pdf = if settings.nee_weighs_guide {
+                    mixture
+                } else {
+                    nee_partner_pdf(bsdf_pdf, guide_probability, focal_share)
+                };
                 if !(pdf.is_finite() && pdf > 0.0) {
                     break;
                 }
@@ -938,8 +964,14 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         if occluded {
             return Vec3::ZERO;
         }
-        let guide = distribution.map(|distribution| (clock.time(|| distribution.pdf(wi)), guide_share));
-        let weight = power_heuristic(light_pdf, self.scatter_pdf(material, shading, wo, wi, guide, focal_share));
+        let scatter_pdf = if self.settings.nee_weighs_guide {
+            let guide = distribution.map(|distribution| (clock.time(|| distribution.pdf(wi)), guide_share));
+            self.scatter_pdf(material, shading, wo, wi, guide, focal_share)
+        } else {
+            let guide_share = if distribution.is_some() { guide_share } else { 0.0 };
+            nee_partner_pdf(material.pdf(shading, wo, wi), guide_share, focal_share)
+        };
+        let weight = power_heuristic(light_pdf, scatter_pdf);
         f * emitted * (weight * transmittance / light_pdf)
     }
 

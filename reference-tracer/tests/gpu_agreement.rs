@@ -163,7 +163,7 @@ fn render_learning(
     // The shader's tables learn each direction unweighted, its mixture by target/pdf:
     // the CPU renders compared with them learn alike.
     let density_weighted_learning = matches!(settings, DirectionalGuideSettings::Mixture(_));
-    let integrator = IntegratorSettings { density_weighted_learning, ..integrator(method) };
+    let integrator = IntegratorSettings { density_weighted_learning, nee_weighs_guide: true, ..integrator(method) };
     let lights = power_lights();
     let mut prepared = prepare_with_lights(scene, IntersectorChoice::default(), Some(settings), lights).unwrap();
     prepared.device = device;

@@ -168,6 +168,14 @@ impl FocalGuide {
         self.selection.share(point)
     }
 
+    /// Whether some region aims at the boxes at all (some cell's probability above 0,
+    /// and boxes to aim at): where none does, a renderer that is not learning can leave
+    /// the focal guide out of its vertices.
+    #[inline]
+    pub fn aims(&self) -> bool {
+        !self.boxes.is_empty() && self.selection.any()
+    }
+
     /// Learns how well aiming at the boxes would have served the vertex of `arrival`:
     /// for each candidate probability c, the second moment ∫ F²/p_c of the estimator
     /// with that mixture is estimated from the direction drawn with p:
