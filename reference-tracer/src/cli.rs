@@ -98,8 +98,8 @@ struct RenderArgs {
     /// The scene file: scene.json, or a pbrt-v3 (.pbrt) or Mitsuba (.xml) scene.
     scene: PathBuf,
     /// pt, nee, guided or guided-nee. Default guided-nee: at 60 s, with the guided
-    /// defaults, its relMSE ÷ nee's was 0.413 and 0.555 on door 160×120 (seeds 42, 41),
-    /// 0.932 and 0.988 on cornell 128²; six scenes in the README.
+    /// defaults, its relMSE ÷ nee's was 0.423 and 0.428 on door 160×120 (seeds 41, 42),
+    /// 0.743 and 0.917 on cornell 128²; six scenes in the README.
     #[arg(long, default_value = "guided-nee", value_parser = parse_method)]
     integrator: Method,
     #[command(flatten)]
@@ -200,10 +200,15 @@ pub struct TraceOptions {
     /// Russian roulette after this many vertices.
     #[arg(long, default_value_t = 4)]
     rr_depth: u32,
-    /// Probability of sampling the guide instead of the BSDF, in [0, 1]. 0.3 measured
-    /// best on door and cornell (0.5 compounds larger mixture weights over bounces).
-    #[arg(long, default_value_t = 0.3)]
-    p_guide: f32,
+    /// Probability of sampling the guide instead of the BSDF, in [0, 1]: with the learned
+    /// share (the CPU's default) the most any region takes. Default 0.5 on the CPU: against
+    /// 0.3, guided-nee relMSE × spp at 30 s, seeds 41 and 42, cornell 128² 0.154/0.153
+    /// against 0.167/0.162, door 160×120 11.77/11.18 against 11.44/11.17, glossy 128²
+    /// 17.63/16.90 against 17.93/16.98; Veach Ajar relMSE at 60 s 3.61/3.18 against
+    /// 3.43/3.26. 0.3 on the GPU, whose share is fixed at every vertex (0.5 compounds
+    /// larger mixture weights over bounces).
+    #[arg(long)]
+    p_guide: Option<f32>,
     /// Only the first N vertices of each path use the guide; deeper ones sample the BSDF
     /// alone, at nee's cost per vertex. Default 1 on the CPU, measured best: guided-nee ÷
     /// nee at 20 s on cornell 128² 1.01–1.09 (every vertex: 1.29), on door 160×120 1.21
@@ -610,13 +615,23 @@ impl TraceOptions {
         }
     }
 
+    /// The directional guide's most share: `--p-guide`, else 0.5 on the CPU (where each
+    /// region learns its own share up to it) and 0.3 on the GPU (a fixed share).
+    fn p_guide(&self) -> f32 {
+        match (self.p_guide, self.device) {
+            (Some(p), _) => p,
+            (None, Device::Gpu) => 0.3,
+            (None, _) => 0.5,
+        }
+    }
+
     /// The focal guide's most share: `--p-focal`, else 0.5 (at most 1 − p_guide) on the
     /// CPU and 0 on the GPU.
     fn p_focal(&self) -> f32 {
         match (self.p_focal, self.device) {
             (Some(p), _) => p,
             (None, Device::Gpu) => 0.0,
-            (None, _) => 0.5f32.min(1.0 - self.p_guide),
+            (None, _) => 0.5f32.min(1.0 - self.p_guide()),
         }
     }
 
@@ -640,8 +655,8 @@ impl TraceOptions {
 
     fn focal_settings(&self) -> Result<FocalGuideSettings, String> {
         let p_focal = self.p_focal();
-        if !(0.0..=1.0 - self.p_guide).contains(&p_focal) {
-            return Err(format!("--p-focal {p_focal} must be in [0, 1 − p_guide = {}]", 1.0 - self.p_guide));
+        if !(0.0..=1.0 - self.p_guide()).contains(&p_focal) {
+            return Err(format!("--p-focal {p_focal} must be in [0, 1 − p_guide = {}]", 1.0 - self.p_guide()));
         }
         if !(self.focal_learn > 0.0 && self.focal_learn <= 1.0) {
             return Err(format!("--focal-learn {} must be in (0, 1]", self.focal_learn));
@@ -664,8 +679,8 @@ impl TraceOptions {
         if !(self.guide_mib.is_finite() && self.guide_mib > 0.0) {
             return Err(format!("--guide-mib {} must be positive", self.guide_mib));
         }
-        if !(0.0..=1.0).contains(&self.p_guide) {
-            return Err(format!("--p-guide {} must be in [0, 1]", self.p_guide));
+        if !(0.0..=1.0).contains(&self.p_guide()) {
+            return Err(format!("--p-guide {} must be in [0, 1]", self.p_guide()));
         }
         let defaults = HemisphereGridSettings::default();
         let settings = HemisphereGridSettings {
@@ -696,7 +711,7 @@ impl TraceOptions {
             method,
             max_depth: self.max_depth.max(1),
             rr_depth: self.rr_depth,
-            guide_probability: self.p_guide,
+            guide_probability: self.p_guide(),
             guide_depth,
             focal_probability: self.p_focal(),
             focal_learning_share: self.focal_learn,
