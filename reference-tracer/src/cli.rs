@@ -354,10 +354,13 @@ pub struct TraceOptions {
     /// Next-event gate of guided methods (CPU): a grid cell whose share of arriving shadow
     /// rays is v estimates next-event light with probability clamp(SCALE·v, FLOOR, 1), and
     /// otherwise leaves its light to the scattered direction (MIS-weighted alike, so
-    /// unbiased). 0 always shoots. 5 measured best (door 160×120, 30 s, guided-nee with
-    /// the focal guide, ÷ nee: 0.50 and 0.45 against 0.59 and 0.61 ungated, seeds 11
-    /// and 12; cornell unchanged).
-    #[arg(long, default_value_t = 5.0)]
+    /// unbiased). 0 always shoots. 20 measured best: guided-nee relMSE at fixed spp, 20
+    /// against 5 (seeds 5 and 6), many_lights 160×120 512 spp 1.87e-3/1.88e-3 against
+    /// 2.15e-3/2.18e-3 (ungated 1.82e-3; nee 1.88e-3) with 0.5 % more rays, door 160×120
+    /// 256 spp 5.37e-2/5.71e-2 against 5.28e-2/6.12e-2 (ungated 6.18e-2, 1.5 times the
+    /// rays), cornell and glossy 128² 512 spp 1 % and 1 % lower. Scale 5 had cut rays on
+    /// door and skipped cells on many_lights where few but bright shadow rays arrive.
+    #[arg(long, default_value_t = 20.0)]
     nee_gate: f32,
     /// The next-event gate's least probability of a shadow ray (FLOOR above), in (0, 1]. 0.03 against
     /// 0.1 on door (30 s, seeds 11 and 12): relMSE 0.89 and 1.04 times, so 0.1 stays.

@@ -38,7 +38,7 @@ pub struct NextEventGateSettings {
 
 impl Default for NextEventGateSettings {
     fn default() -> Self {
-        Self { budget_bytes: 256 << 10, resolution: None, scale: 5.0, floor: 0.1 }
+        Self { budget_bytes: 256 << 10, resolution: None, scale: 20.0, floor: 0.1 }
     }
 }
 
