@@ -64,20 +64,7 @@ impl FocalOctree {
 
     /// The leaf that holds `p`, if `p` is inside the root cube.
     pub fn leaf_at(&self, p: Vec3) -> Option<u32> {
-        if !self.contains(p) {
-            return None;
-        }
-        let (mut node, mut low, mut size) = (0u32, self.low, self.size);
-        loop {
-            let first = self.children[node as usize];
-            if first == 0 {
-                return Some(node);
-            }
-            let (index, child_low) = child_of(p, low, size);
-            node = first + index;
-            low = child_low;
-            size *= 0.5;
-        }
+        self.leaf_cube_at(p).map(|(leaf, _, _)| leaf)
     }
 
     /// The leaf that holds `p` with its cube's corner and side, if `p` is inside the root
