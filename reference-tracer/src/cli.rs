@@ -218,7 +218,7 @@ pub struct TraceOptions {
     /// Most probability of aiming at the focal guide (points in space where light squeezes
     /// through, learned from the segments that carried it) instead of the BSDF, at every
     /// vertex of a guided method; each region of space learns its own share up to it (the
-    /// least second moment among 0, 0.02, … 0.5); p_guide + p_focal ≤ 1. 0 leaves it out.
+    /// least variance among 0, 0.02, … 0.5, --focal-share-cost); p_guide + p_focal ≤ 1. 0 leaves it out.
     /// Default 0.5 (at most 1 − p_guide) on the CPU, 0 on the GPU (which has no focal
     /// guide). 0.5 with `--guide none --p-guide 0 --schedule iterative`, at 60 s: door
     /// 160×120 0.57–0.60 × nee's relMSE, cornell 128² 1.02 ×.
@@ -252,8 +252,8 @@ pub struct TraceOptions {
     focal_learn: f32,
     /// The directional guide's share of the scattering: fixed (--p-guide at every guided
     /// vertex) or learned (each cell of the focal guide's selection grid picks, up to
-    /// --p-guide, the share whose estimator had the least second moment, as the focal
-    /// guide does; where it picks 0 the guide is not even located). Default learned on
+    /// --p-guide, the share whose estimator had the least variance times its cost
+    /// (--guide-share-cost), as the focal guide does; where it picks 0 the guide is not even located). Default learned on
     /// the CPU, fixed on the GPU (which learns no share). With `--guide hemisphere
     /// --schedule iterative --p-guide 0.3 --p-focal 0.5`, 60 s, ÷ nee (seeds 21, 22):
     /// door 160×120 0.494 and 0.486, cornell 128² 0.966 and 1.218 (per sample 0.80 both
@@ -264,6 +264,21 @@ pub struct TraceOptions {
     /// learns its own probability of aiming at the boxes.
     #[arg(long)]
     focal_cells: Option<u32>,
+    /// The learned guide share's cost of guiding, ≥ 0: a cell gives the directional guide a
+    /// share above 0 only where the variance it leaves, times 1 + this, is below the
+    /// variance at 0 (the guide's lookups cost time at every vertex of the cell). 0.3
+    /// measured best: against 0, guided-nee at 30 s, relMSE ÷ (seeds 41 and 42), door
+    /// 160×120 0.94/0.96 (the focal guide serves it: the guide kept 1 of 96 cells, per
+    /// sample equal), glossy 128² 0.97/0.95, many_lights 160×120 0.97/0.98, cornell 128²
+    /// 1.01/1.04 (per sample 1.01/1.00); 1 lost 19 % per sample on cornell.
+    #[arg(long, default_value_t = 0.3)]
+    guide_share_cost: f32,
+    /// The focal guide's selection cost, ≥ 0, as --guide-share-cost for aiming at the
+    /// boxes. Default 0: at 0.1 or 0.3 for both, door 160×120 lost 12 % and 87 % per sample
+    /// (30 s, seed 41): where both strategies serve a cell each one's own gain looks small
+    /// and both were dropped.
+    #[arg(long)]
+    focal_share_cost: Option<f32>,
     /// Learning rate: simple (α = 1/(1+visits)), region, exponential:ALPHA or global:EXPONENT.
     #[arg(long, default_value = "simple", value_parser = parse_learning_rate)]
     learning_rate: LearningRate,
@@ -670,6 +685,7 @@ impl TraceOptions {
             focal_ratio: self.focal_ratio.unwrap_or(defaults.focal_ratio),
             split_share: self.focal_split.unwrap_or(defaults.split_share),
             share_resolution: self.focal_cells.unwrap_or(defaults.share_resolution),
+            share_cost: self.focal_share_cost.unwrap_or(defaults.share_cost),
             merge_ratio: self.focal_merge.unwrap_or(defaults.merge_ratio),
             deposits_per_segment: self.focal_deposits.unwrap_or(defaults.deposits_per_segment),
             ..defaults
@@ -853,6 +869,8 @@ pub struct Prepared {
     pub guide_shares: Option<StrategyShares>,
     /// Its settings.
     pub focal_settings: FocalGuideSettings,
+    /// The learned guide share's cost of guiding (`--guide-share-cost`).
+    pub guide_share_cost: f32,
     /// The learned light selection, when the plan asks for it and the scene has area lights.
     pub light_guide: Option<LightGuide>,
     /// The next-event gate, for guided methods on the CPU with area lights.
@@ -961,8 +979,9 @@ impl Prepared {
         let learns_share = guided && settings.integrator.learned_guide_share && self.guide.is_some();
         if learns_share && self.guide_shares.is_none() {
             let (low, high) = self.scene.bounds();
-            let resolution = self.focal_settings.share_resolution;
-            self.guide_shares = Some(StrategyShares::new(low, high, resolution).map_err(|e| e.to_string())?);
+            let (resolution, cost) = (self.focal_settings.share_resolution, self.guide_share_cost);
+            let shares = StrategyShares::new(low, high, resolution).and_then(|s| s.with_cost(cost));
+            self.guide_shares = Some(shares.map_err(|e| format!("--guide-share-cost: {e}"))?);
         }
         let guide_shares = self.guide_shares.as_mut().filter(|_| learns_share);
         let lights = self.light_guide.as_mut();
@@ -1144,6 +1163,7 @@ pub fn prepare_with_lights(
         focal_guide: None,
         guide_shares: None,
         focal_settings: FocalGuideSettings::default(),
+        guide_share_cost: 0.3,
         plan,
         times,
         device: Device::Cpu,
@@ -1240,6 +1260,21 @@ pub fn render_prepared(
     Ok((image, statistics, checkpoints))
 }
 
+/// Where the learned shares use their strategies: cells with a share above 0 of each grid.
+fn describe_shares(prepared: &Prepared, method: Method) -> Option<String> {
+    if !method.uses_guide() {
+        return None;
+    }
+    let guide =
+        prepared.guide_shares.as_ref().map(|s| format!("guide in {} of {} cells", s.cells_in_use(), s.cell_count()));
+    let focal = prepared.focal_guide.as_ref().map(|f| {
+        let (used, cells) = f.selection_cells();
+        format!("focal boxes ({}) in {used} of {cells} cells", f.boxes().len())
+    });
+    let parts: Vec<String> = guide.into_iter().chain(focal).collect();
+    (!parts.is_empty()).then(|| parts.join(", "))
+}
+
 fn sibling(path: &Path, extension: &str) -> PathBuf {
     path.with_extension(extension)
 }
@@ -1310,6 +1345,7 @@ pub fn statistics_json(
         "method": method.name(),
         "plan": prepared.plan.describe(),
         "learned": prepared.guide.as_ref().filter(|_| method.uses_guide()).map(|g| g.describe()),
+        "shares": describe_shares(prepared, method),
         "light_guide": light_guide,
         "next_event_gate": gate,
         "environment_guide": environment_guide,
@@ -1364,6 +1400,7 @@ fn run_render(args: &RenderArgs) -> Result<(), String> {
     resize(&mut prepared, options.resolution);
     prepared.device = options.device;
     prepared.focal_settings = options.focal_settings()?;
+    prepared.guide_share_cost = options.guide_share_cost;
     for warning in &prepared.scene.warnings {
         eprintln!("warning: {}: {warning}", args.scene.display());
     }
@@ -1419,6 +1456,9 @@ fn run_render(args: &RenderArgs) -> Result<(), String> {
     }
     if let Some(guide) = prepared.guide.as_ref().filter(|_| args.integrator.uses_guide()) {
         eprintln!("learned: {}", guide.describe());
+    }
+    if let Some(shares) = describe_shares(&prepared, args.integrator) {
+        eprintln!("shares: {shares}");
     }
     eprintln!("wrote {}", args.out.display());
     Ok(())
@@ -1494,6 +1534,8 @@ fn run_compare(args: &CompareArgs) -> Result<(), String> {
         resize(&mut prepared, options.resolution);
         prepared.device = compared.device;
         prepared.focal_settings = options.focal_settings()?;
+        prepared.guide_share_cost = options.guide_share_cost;
+        prepared.guide_share_cost = options.guide_share_cost;
         eprintln!("{name}: plan: {}", prepared.plan.describe());
         let camera = &prepared.scene.camera;
         if (reference.width, reference.height) != (camera.width as usize, camera.height as usize) {

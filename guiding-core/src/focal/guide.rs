@@ -147,7 +147,7 @@ impl FocalGuide {
                 requirement: "finite, with high ≥ low on every axis",
             });
         }
-        let selection = StrategyShares::new(low, high, settings.share_resolution)?;
+        let selection = StrategyShares::new(low, high, settings.share_resolution)?.with_cost(settings.share_cost)?;
         Ok(Self {
             octree: FocalOctree::new(low, high),
             settings,
@@ -160,9 +160,16 @@ impl FocalGuide {
         })
     }
 
+    /// The selection grid: its cells that aim at the boxes (a share above 0) and all of
+    /// them.
+    pub fn selection_cells(&self) -> (usize, usize) {
+        (self.selection.cells_in_use(), self.selection.cell_count())
+    }
+
     /// The probability with which a vertex at `point` should aim at the boxes: of the
-    /// [`CANDIDATES`], the one whose one-sample estimator had the least second moment
-    /// over the arrivals learned around `point` (0 before enough were).
+    /// [`CANDIDATES`], the one whose one-sample estimator had the least variance (times
+    /// `1 + share_cost` above 0) over the arrivals learned around `point` (0 before
+    /// enough were).
     #[inline]
     pub fn selection_probability(&self, point: Vec3) -> f32 {
         self.selection.share(point)

@@ -31,8 +31,14 @@ pub struct FocalGuideSettings {
     pub deposits_per_segment: u32,
     /// Cells of the selection grid along the scene's longest side (the others in
     /// proportion): each cell learns, from the directions its vertices drew, which
-    /// probability of aiming at the boxes would have given the least second moment.
+    /// probability of aiming at the boxes would have given the least variance
+    /// (times `1 + share_cost` above 0).
     pub share_resolution: u32,
+    /// The relative cost of a vertex that aims at the boxes (or uses any strategy whose
+    /// share these cells learn) against one that does not, ≥ 0: a cell picks a share
+    /// above 0 only where the variance it leaves, times `1 + share_cost`, is below the
+    /// variance at share 0.
+    pub share_cost: f32,
 }
 
 impl Default for FocalGuideSettings {
@@ -48,6 +54,7 @@ impl Default for FocalGuideSettings {
             merge_ratio: 2.0,
             deposits_per_segment: 4,
             share_resolution: 8,
+            share_cost: 0.0,
         }
     }
 }
@@ -72,6 +79,8 @@ impl FocalGuideSettings {
         let deposits = self.deposits_per_segment;
         require(deposits <= 64, "deposits_per_segment", deposits as f64, "in 0..=64 (0: exact)")?;
         let cells = self.share_resolution;
-        require((1..=64).contains(&cells), "share_resolution", cells as f64, "in 1..=64")
+        require((1..=64).contains(&cells), "share_resolution", cells as f64, "in 1..=64")?;
+        let cost = self.share_cost;
+        require(cost.is_finite() && cost >= 0.0, "share_cost", cost as f64, "finite and at least 0")
     }
 }
