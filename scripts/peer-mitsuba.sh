@@ -5,7 +5,7 @@
 # virtual environment (.cache/mitsuba-venv; idempotent, a download of about 60 MB), so it
 # stays out of the test command.
 #
-#   scripts/peer-mitsuba.sh SCENE.json SECONDS OUT.exr [--max-depth N] [--rr-depth N]
+#   scripts/peer-mitsuba.sh SCENE.json SECONDS OUT.exr [--max-depth N] [--rr-depth N] [--checkpoints T1,T2,…]
 #                                                      [--resolution WxH] [--threads N]
 #
 # The scene format's subset Mitsuba can render alike is converted: diffuse, conductor and

@@ -173,9 +173,19 @@ def main():
     parser.add_argument("--resolution", help="W×H instead of the scene's, e.g. 128x128")
     parser.add_argument("--threads", type=int, help="worker threads (default: all cores)")
     parser.add_argument("--variant", default="llvm_ad_rgb")
+    parser.add_argument(
+        "--checkpoints",
+        default="",
+        help="comma-separated seconds: after the first pass to end at or past each, the image so far "
+        "is written as OUT-K.exr (K = 1, 2, …) and listed in OUT.json",
+    )
     args = parser.parse_args()
     if not args.seconds > 0:
         sys.exit(f"peer-mitsuba: SECONDS must be positive, got {args.seconds}")
+    try:
+        checkpoint_times = sorted(float(t) for t in args.checkpoints.split(",") if t.strip())
+    except ValueError:
+        sys.exit(f"peer-mitsuba: --checkpoints must be comma-separated seconds, got {args.checkpoints!r}")
 
     import drjit as dr
     import mitsuba as mi
@@ -199,6 +209,8 @@ def main():
         # times a sample): each about a second, the last one ending inside the budget.
         total = np.zeros((height, width, 3))
         spp, seed, chunk = 0, 0, 1
+        stem = os.path.splitext(args.out)[0]
+        checkpoints = []
         while True:
             pass_start = time.perf_counter()
             image = mi.render(scene, spp=chunk, seed=seed)
@@ -206,6 +218,13 @@ def main():
             spp += chunk
             seed += 1
             now = time.perf_counter()
+            while checkpoint_times and now - start >= checkpoint_times[0]:
+                checkpoint_times.pop(0)
+                if checkpoints and checkpoints[-1]["spp"] == spp:
+                    continue
+                path = f"{stem}-{len(checkpoints) + 1}.exr"
+                mi.Bitmap((total / spp).astype(np.float32), mi.Bitmap.PixelFormat.RGB).write(path)
+                checkpoints.append({"seconds": now - start, "spp": spp, "image": path})
             per_sample = (now - pass_start) / chunk
             if seed == 1:
                 chunk = max(1, int(1.0 / max(per_sample, 1e-6)))
@@ -215,6 +234,9 @@ def main():
                 if chunk < 1:
                     break
         seconds = time.perf_counter() - start
+        if checkpoints and checkpoints[-1]["spp"] == spp:
+            # The last pass reached a checkpoint: OUT.exr is that image.
+            os.remove(checkpoints.pop()["image"])
     mean = (total / spp).astype(np.float32)
     mi.Bitmap(mean, mi.Bitmap.PixelFormat.RGB).write(args.out)
     paths = width * height * spp
@@ -228,6 +250,7 @@ def main():
         "paths_per_second": paths / seconds,
         "max_depth": args.max_depth,
         "rr_depth": args.rr_depth,
+        "checkpoints": checkpoints + [{"seconds": seconds, "spp": spp, "image": args.out}],
     }
     with open(os.path.splitext(args.out)[0] + ".json", "w") as f:
         json.dump(report, f, indent=2)

@@ -21,6 +21,7 @@ use crate::integrator::{EnvironmentSampling, IntegratorSettings, LightSelection,
 use crate::lights::MAX_LIGHT_SPLIT;
 use crate::metrics::{image_error, ImageError};
 use crate::output::{read_image, write_exr, write_pfm, write_png, Image};
+use crate::peer::{run_peer, Peer, PeerSettings};
 use crate::plan::{auto_light_split, GuidePlan};
 use crate::render::{render, Budget, Learners, Progress, RenderSettings, RenderStatistics};
 use crate::scene::Scene;
@@ -89,6 +90,12 @@ struct CompareArgs {
     /// Times (seconds) at which the table reports relMSE; default 10 and --seconds.
     #[arg(long, value_delimiter = ',')]
     report_at: Vec<f64>,
+    /// A peer renderer run first, for --seconds, as one more row: mitsuba (Mitsuba 3's
+    /// vectorised path tracer, installed by scripts/peer-mitsuba.sh into .cache on first
+    /// use; a scene it cannot render alike is refused with the feature named). It gets
+    /// --max-depth, --rr-depth, --resolution and --threads.
+    #[arg(long, value_parser = Peer::from_name)]
+    peer: Option<Peer>,
     #[command(flatten)]
     options: TraceOptions,
 }
@@ -1518,6 +1525,18 @@ fn run_compare(args: &CompareArgs) -> Result<(), String> {
     let mut rows = Vec::new();
     let mut names = Vec::new();
     let mut learned_bytes = Vec::new();
+    if let Some(peer) = args.peer {
+        eprintln!("{}: rendering {} s", peer.name(), args.seconds);
+        let settings = PeerSettings {
+            max_depth: options.max_depth,
+            rr_depth: options.rr_depth,
+            resolution: options.resolution,
+            threads: options.threads,
+        };
+        rows.extend(run_peer(peer, &args.scene, args.seconds, settings, &args.out, &reference, &report_times)?);
+        names.push(peer.name().to_string());
+        learned_bytes.push(0);
+    }
     for run in expand_guides(&args.methods, &options.guide) {
         let (compared, name) = (run.compared, run.name);
         let method = compared.method;
@@ -1534,7 +1553,6 @@ fn run_compare(args: &CompareArgs) -> Result<(), String> {
         resize(&mut prepared, options.resolution);
         prepared.device = compared.device;
         prepared.focal_settings = options.focal_settings()?;
-        prepared.guide_share_cost = options.guide_share_cost;
         prepared.guide_share_cost = options.guide_share_cost;
         eprintln!("{name}: plan: {}", prepared.plan.describe());
         let camera = &prepared.scene.camera;

@@ -23,6 +23,7 @@ pub mod lights;
 pub mod material;
 pub mod metrics;
 pub mod output;
+pub mod peer;
 pub mod plan;
 pub mod render;
 pub mod report;

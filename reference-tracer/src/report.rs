@@ -113,12 +113,14 @@ pub fn markdown(
         else {
             continue;
         };
+        // A peer renderer reports neither.
+        let shown = |v: f64, digits: usize| if v.is_finite() { format!("{v:.digits$}") } else { "–".into() };
         text += &format!(
-            "| {method} | {} | {:.0} | {:.4} | {:.2} | {bytes} | {:.3} | {:.3e} | {:.3} |",
+            "| {method} | {} | {:.0} | {} | {} | {bytes} | {:.3} | {:.3e} | {:.3} |",
             last.spp,
             last.paths_per_second,
-            last.nonzero_share,
-            last.mean_path_length,
+            shown(last.nonzero_share, 4),
+            shown(last.mean_path_length, 2),
             last.relmse * last.spp as f64,
             last.median_relmse,
             last.worst_share

@@ -83,3 +83,70 @@ fn the_mitsuba_peer_refuses_what_it_cannot_render_alike_by_name() {
     assert_eq!(output.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&output.stderr).contains("lodestar convert"));
 }
+
+/// Runs `lodestar compare` on cornell 16² against a flat reference with `--peer mitsuba`
+/// and the peer script `script` (None: the repository's), writing into `out`.
+fn compare_with_peer(script: Option<&Path>, out: &Path, methods: &str, seconds: &str) -> Output {
+    let scene = repository_scene("cornell", 16, 16);
+    let reference = scene.with_file_name("flat.exr");
+    let flat = Image { width: 16, height: 16, pixels: vec![Vec3::splat(0.2); 256] };
+    reference_tracer::output::write_exr(&reference, &flat).unwrap();
+    let mut command = Command::new(env!("CARGO_BIN_EXE_lodestar"));
+    command.args(["compare", scene.to_str().unwrap(), "--methods", methods, "--seconds", seconds]);
+    command.args(["--reference", reference.to_str().unwrap(), "--out", out.to_str().unwrap(), "--peer", "mitsuba"]);
+    if let Some(script) = script {
+        command.env("LODESTAR_PEER_MITSUBA", script);
+    }
+    command.output().unwrap()
+}
+
+/// Runs everywhere: a peer that refuses the scene (status 2, the feature named) or a
+/// script that is not there stops `compare` before it renders anything, with the
+/// peer's own message.
+#[test]
+fn compare_stops_with_the_peers_refusal_named() {
+    let folder = std::env::temp_dir().join(format!("lodestar-peer-refusal-{}", std::process::id()));
+    std::fs::create_dir_all(&folder).unwrap();
+    let script = folder.join("refuse.sh");
+    std::fs::write(&script, "echo \"peer-mitsuba: $1: textures are not supported by the Mitsuba peer\" >&2\nexit 2\n")
+        .unwrap();
+    let output = compare_with_peer(Some(&script), &folder.join("out"), "nee", "1");
+    assert!(!output.status.success());
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        stderr.contains("--peer mitsuba: refused the scene") && stderr.contains("textures are not supported"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("nee: rendering"), "rendered before the peer: {stderr}");
+    let output = compare_with_peer(Some(&folder.join("missing.sh")), &folder.join("out"), "nee", "1");
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(!output.status.success() && stderr.contains("no script at"), "{stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    std::fs::remove_dir_all(&folder).unwrap();
+}
+
+/// Where the venv exists: the peer is a row of the table and of compare.csv, with its
+/// checkpoints (about 1 s and the last) measured against the same reference.
+#[test]
+fn compare_adds_the_mitsuba_peer_as_a_row() {
+    let Some(_) = peer_python() else { return };
+    let out = std::env::temp_dir().join(format!("lodestar-peer-compare-{}", std::process::id()));
+    let output = compare_with_peer(None, &out, "nee", "3");
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let table = std::fs::read_to_string(out.join("compare.md")).unwrap();
+    assert!(table.contains("| mitsuba |") && table.contains("| nee |"), "{table}");
+    let csv = std::fs::read_to_string(out.join("compare.csv")).unwrap();
+    let peer_rows: Vec<Vec<f64>> = csv
+        .lines()
+        .filter(|l| l.starts_with("mitsuba,"))
+        .map(|l| l.split(',').skip(1).map(|v| v.parse().unwrap()).collect())
+        .collect();
+    assert!(!peer_rows.is_empty(), "{csv}");
+    // seconds, spp, paths/s positive; relMSE finite and of a flat 0.2 image against
+    // cornell's: far from 0.
+    for row in &peer_rows {
+        assert!(row[0] > 0.0 && row[1] >= 1.0 && row[2] > 0.0, "{row:?}");
+        assert!(row[5].is_finite() && row[5] > 1e-3, "{row:?}");
+    }
+    std::fs::remove_dir_all(&out).unwrap();
+}
