@@ -16,12 +16,14 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 . scripts/setup.sh
+# Embree is the faster intersector (--intersector auto picks it when built in).
+scripts/provision-embree.sh
 seconds=${1:-60}
 reference_spp=${2:-2048}
 shift $(( $# > 2 ? 2 : $# ))
 scenes=("$@")
 [ ${#scenes[@]} -gt 0 ] || scenes=(door cornell window many_lights veach-ajar living-room modern-hall)
-cargo build --release -p reference-tracer
+cargo build --release -p reference-tracer --features embree
 lodestar=./target/release/lodestar
 mkdir -p out/references
 for scene in "${scenes[@]}"; do
