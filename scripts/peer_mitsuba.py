@@ -8,6 +8,7 @@ with a message naming it and exit status 2.
 
 import argparse
 import json
+import math
 import os
 import sys
 import tempfile
@@ -206,7 +207,7 @@ def main():
         start = time.perf_counter()
         scene = mi.load_dict(description)
         # Passes of equal size after a first one-sample pass (which compiles the kernel and
-        # times a sample): each about a second, the last one ending inside the budget.
+        # times a sample): each about a second, the last one ending at or just past the budget.
         total = np.zeros((height, width, 3))
         spp, seed, chunk = 0, 0, 1
         stem = os.path.splitext(args.out)[0]
@@ -229,10 +230,12 @@ def main():
             if seed == 1:
                 chunk = max(1, int(1.0 / max(per_sample, 1e-6)))
             left = args.seconds - (now - start)
+            if left <= 0:
+                break
+            # The last pass ends at or just past the budget, as Lodestar's passes do, so
+            # the report at SECONDS finds it.
             if left < chunk * per_sample:
-                chunk = int(left / max(per_sample, 1e-9))
-                if chunk < 1:
-                    break
+                chunk = max(1, math.ceil(left / max(per_sample, 1e-9)))
         seconds = time.perf_counter() - start
         if checkpoints and checkpoints[-1]["spp"] == spp:
             # The last pass reached a checkpoint: OUT.exr is that image.
