@@ -173,7 +173,8 @@ impl StrategyShares {
             // Variance = second moment − mean², per arrival; the mean is the same for
             // every candidate (each estimates the same integral).
             let n = seen.max(1.0) as f64;
-            let mean_square = (atomic_f32::load(mean) as f64 / n).powi(2);
+            let mean_per_arrival = atomic_f32::load(mean) as f64 / n;
+            let mean_square = mean_per_arrival * mean_per_arrival;
             let best = moments
                 .iter()
                 .zip(CANDIDATES)
