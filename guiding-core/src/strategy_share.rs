@@ -149,9 +149,9 @@ impl StrategyShares {
         let Some(cell) = self.cell(arrival.point) else { return UpdateOutcome::OutsideDomain };
         atomic_f32::update(&self.arrivals[cell], |n| n + 1.0);
         if integrand > 0.0 {
-            let ratio = (integrand as f64 / arrival.pdf as f64).min(f32::MAX as f64) as f32;
-            atomic_f32::update(&self.means[cell], |m| (m + ratio).min(f32::MAX));
-            let square = integrand as f64 * integrand as f64 / arrival.pdf as f64;
+            let ratio = integrand as f64 / arrival.pdf as f64;
+            atomic_f32::update(&self.means[cell], |m| (m + ratio.min(f32::MAX as f64) as f32).min(f32::MAX));
+            let square = integrand as f64 * ratio;
             for (moment, &c) in self.moments[cell].iter().zip(&CANDIDATES) {
                 let mixture = arrival.pdf as f64
                     + (c - arrival.selection) as f64 * (arrival.strategy_pdf as f64 - arrival.bsdf_pdf as f64);
@@ -184,7 +184,8 @@ impl StrategyShares {
                     (variance * cost, c)
                 })
                 .fold((f64::INFINITY, 0.0), |best, (v, c)| if v < best.0 { (v, c) } else { best });
-            let any_light = moments.iter().any(|m| atomic_f32::load(m) > 0.0);
+            // Σ F/p grows only with arrivals that brought light.
+            let any_light = atomic_f32::load(mean) > 0.0;
             *share = if seen >= MIN_ARRIVALS && any_light { best.1 } else { 0.0 };
             for m in moments.iter().chain([mean]) {
                 atomic_f32::update(m, |m| 0.5 * m);

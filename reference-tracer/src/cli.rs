@@ -178,6 +178,9 @@ fn resize(prepared: &mut Prepared, resolution: Option<[u32; 2]>) {
     }
 }
 
+/// The learned guide share's default cost of guiding (`--guide-share-cost`).
+pub const GUIDE_SHARE_COST: f32 = 0.3;
+
 /// Options shared by every command that traces paths.
 #[derive(Debug, Args, Clone)]
 pub struct TraceOptions {
@@ -278,7 +281,7 @@ pub struct TraceOptions {
     /// 160×120 0.94/0.96 (the focal guide serves it: the guide kept 1 of 96 cells, per
     /// sample equal), glossy 128² 0.97/0.95, many_lights 160×120 0.97/0.98, cornell 128²
     /// 1.01/1.04 (per sample 1.01/1.00); 1 lost 19 % per sample on cornell.
-    #[arg(long, default_value_t = 0.3)]
+    #[arg(long, default_value_t = GUIDE_SHARE_COST)]
     guide_share_cost: f32,
     /// The focal guide's selection cost, ≥ 0, as --guide-share-cost for aiming at the
     /// boxes. Default 0: at 0.1 or 0.3 for both, door 160×120 lost 12 % and 87 % per sample
@@ -1173,7 +1176,7 @@ pub fn prepare_with_lights(
         focal_guide: None,
         guide_shares: None,
         focal_settings: FocalGuideSettings::default(),
-        guide_share_cost: 0.3,
+        guide_share_cost: GUIDE_SHARE_COST,
         plan,
         times,
         device: Device::Cpu,
