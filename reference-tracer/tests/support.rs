@@ -31,7 +31,7 @@ pub fn write_scene(folder: &Path, json: &serde_json::Value) -> PathBuf {
 
 /// The repository's scene `name`, with its camera resized and its meshes copied along.
 pub fn repository_scene(name: &str, width: u32, height: u32) -> PathBuf {
-    let source = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes").join(name);
+    let source = scenes_folder().join(name);
     let folder = temp_folder(&format!("scene-{name}-{width}"));
     let mut json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(source.join("scene.json")).unwrap()).unwrap();
@@ -43,6 +43,15 @@ pub fn repository_scene(name: &str, width: u32, height: u32) -> PathBuf {
     }
     copy_folder(&source, &folder);
     write_scene(&folder, &json)
+}
+
+/// The repository's `scenes/`, or `LODESTAR_SCENES` where set: a test binary carried to
+/// another machine (scripts/device-gpu-check.sh) finds its scenes there.
+fn scenes_folder() -> PathBuf {
+    match std::env::var_os("LODESTAR_SCENES") {
+        Some(folder) => PathBuf::from(folder),
+        None => Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes"),
+    }
 }
 
 fn copy_folder(from: &Path, to: &Path) {
