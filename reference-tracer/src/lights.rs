@@ -32,6 +32,9 @@ pub struct AreaLights {
     triangles: Vec<u32>,
     /// The triangle each light samples: its scene triangle, or a sub-triangle of it.
     shapes: Vec<Triangle>,
+    /// Each shape's front normal (zero where it has none), kept because a light sample
+    /// needs it at every vertex: normalising there cost 4–5 % of a nee path.
+    normals: Vec<Vec3>,
     emission: Vec<Vec3>,
     areas: Vec<f32>,
     /// First light of each scene triangle (`u32::MAX` when it does not emit); its
@@ -62,7 +65,9 @@ impl AreaLights {
                 lights.first_light[i] = lights.triangles.len() as u32;
                 for sub in 0..split * split {
                     lights.triangles.push(i as u32);
-                    lights.shapes.push(sub_triangle(triangle, split, sub));
+                    let shape = sub_triangle(triangle, split, sub);
+                    lights.normals.push(shape.normal().unwrap_or(Vec3::ZERO));
+                    lights.shapes.push(shape);
                     lights.emission.push(emission);
                     lights.areas.push(area / (split * split) as f32);
                 }
@@ -136,7 +141,8 @@ impl AreaLights {
         let light = light as usize;
         let triangle = self.shapes.get(light)?;
         let point = triangle.point(square_to_triangle_barycentrics(u));
-        let normal = triangle.normal()?;
+        // A shape without a normal has a zero one: no direction sees its front.
+        let normal = self.normals[light];
         let to_light = point - from;
         let distance2 = to_light.length_squared();
         let distance = distance2.sqrt();
