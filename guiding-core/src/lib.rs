@@ -33,6 +33,7 @@ mod geometry;
 mod guide;
 mod intersector;
 mod low_discrepancy;
+mod path_recorder;
 mod scattering;
 mod strategy_share;
 mod update_rule;
@@ -63,6 +64,7 @@ pub use geometry::{square_to_triangle_barycentrics, Hit, Ray, Triangle};
 pub use guide::{Guide, GuideStats};
 pub use intersector::Intersector;
 pub use low_discrepancy::{hammersley, radical_inverse_base2, Pcg32};
+pub use path_recorder::{Onward, PathRecorder, RecordedVertex, Targets};
 pub use scattering::{Lambertian, SampledDirection, ScatteringFunction};
 pub use strategy_share::{StrategyArrival, StrategyShares};
 pub use update_rule::{

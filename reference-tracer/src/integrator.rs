@@ -8,8 +8,8 @@ use glam::{Vec2, Vec3};
 use guiding_core::environment::{EnvCell, EnvSample};
 use guiding_core::{
     DirectionalDistribution, EnvTileGuide, FocalArrival, FocalGuide, FocalRecord, GateCell, Guide, Hit,
-    IntegralEstimator, Intersector, Lambertian, LightCell, LightGuide, NextEventGate, Pcg32, Ray, SampledDirection,
-    ScatteringFunction, StrategyArrival, StrategyShares,
+    IntegralEstimator, Intersector, Lambertian, LightCell, LightGuide, NextEventGate, PathRecorder, Pcg32, Ray,
+    SampledDirection, ScatteringFunction, StrategyArrival, StrategyShares,
 };
 
 use crate::color::luminance;
@@ -245,39 +245,19 @@ impl std::ops::Add for PathCounters {
     }
 }
 
-/// What a vertex knows about the radiance arriving along its sampled direction, for
-/// the update of Eq. (1) once the path is complete.
-#[derive(Clone, Copy, Debug)]
-enum Onward {
-    /// The guide's estimate of ∫ Q fs cos at the next vertex.
-    Integral(f32),
-    /// No estimate there (a delta surface or no region): carry the next vertex's target,
-    /// scaled by its sampled throughput factor (a one-sample estimate of the integral).
-    Carry(f32),
-    /// The path ended at the next vertex or escaped.
-    End,
-}
-
-/// One path vertex as the learning update sees it.
+/// What the tracer keeps beside each recorded vertex for its own learners (the guide's
+/// targets themselves come from guiding-core's [`PathRecorder`]).
 ///
 /// With next-event estimation, Q must not learn the light that next-event estimation
 /// already brings: a guide that also chases the lights starves the other directions,
 /// whose BSDF samples then carry mixture weights up to 1/(1-p_guide) at every bounce,
-/// and those compound into fireflies. So the target of Eq. (1) is split by strategy:
-/// `arriving` holds the next vertex's emission times the MIS weight it received as a
-/// BSDF/guide hit, plus the light the next vertex's own next-event sample reflects back
-/// (which is indirect light for this vertex); `onward` holds ∫ Q fs cos at the next
-/// vertex, whose Q was learned the same way. Without next-event estimation the weights
-/// are 1 and this is exactly Eq. (1).
+/// and those compound into fireflies. So the tracer tells the recorder, as arriving, the
+/// next vertex's emission times the MIS weight it received as a BSDF/guide hit, plus the
+/// light the next vertex's own next-event sample reflects back (indirect light for this
+/// vertex), and as onward ∫ Q fs cos at the next vertex, whose Q was learned the same
+/// way. Without next-event estimation the weights are 1 and this is exactly Eq. (1).
 #[derive(Clone, Copy, Debug)]
-pub struct LearningVertex<R> {
-    region: Option<R>,
-    /// Where the direction leaves from, and how far it went (infinite when it escaped).
-    origin: Vec3,
-    length: f32,
-    /// The path's throughput (luminance) for what arrives along `direction`: the focal
-    /// guide learns the image contribution, throughput × target.
-    throughput: f32,
+pub struct VertexStrategies {
     /// A uniform number for the focal guide's stratified deposits (0.5 without one).
     u_record: f32,
     /// How the direction was drawn, for the focal guide's choice of its share (`None` at
@@ -289,23 +269,18 @@ pub struct LearningVertex<R> {
     /// How the direction was drawn, for the directional guide's learned share (`None`
     /// where it has none or no region here).
     guide_arrival: Option<StrategyArrival>,
-    direction: Vec3,
-    /// Density the direction was drawn with, per steradian (the one-sample mixture's).
-    pdf: f32,
-    arriving: f32,
-    onward: Onward,
 }
 
 /// Per-thread scratch space reused across paths (no allocation per path); `R` is the
 /// guide's region type.
 pub struct PathScratch<R> {
-    vertices: Vec<LearningVertex<R>>,
+    path: PathRecorder<R, VertexStrategies>,
     clock: GuideClock,
 }
 
 impl<R> Default for PathScratch<R> {
     fn default() -> Self {
-        Self { vertices: Vec::new(), clock: GuideClock::default() }
+        Self { path: PathRecorder::default(), clock: GuideClock::default() }
     }
 }
 
@@ -566,7 +541,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
     ) -> Vec3 {
         let settings = &self.settings;
         let learning = settings.learn && (self.guide.is_some() || self.focal.is_some());
-        scratch.vertices.clear();
+        scratch.path.clear();
         scratch.clock =
             GuideClock { enabled: self.guide.is_some() && counters.paths % TIMED_PATH_STRIDE == 0, nanos: 0 };
         let clock = &mut scratch.clock;
@@ -586,8 +561,8 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         for depth in 0..settings.max_depth {
             counters.rays += 1;
             let next = self.next_surface(ray, rng, counters);
-            if let (Some((hit, _)), Some(last)) = (&next, scratch.vertices.last_mut()) {
-                last.length = hit.t;
+            if let Some((hit, _)) = &next {
+                scratch.path.reached(hit.t);
             }
             let Some((hit, material)) = next else {
                 if let Some(environment) = &self.scene.environment {
@@ -602,9 +577,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                         _ => 1.0,
                     };
                     radiance += throughput * emitted * weight;
-                    if let Some(last) = scratch.vertices.last_mut() {
-                        last.arriving += weight * luminance(emitted);
-                    }
+                    scratch.path.arrive(weight * luminance(emitted));
                 }
                 break;
             };
@@ -626,9 +599,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                     _ => 1.0,
                 };
                 radiance += throughput * material.emission * weight;
-                if let Some(last) = scratch.vertices.last_mut() {
-                    last.arriving += weight * luminance(material.emission);
-                }
+                scratch.path.arrive(weight * luminance(material.emission));
             }
             let shading_normal = self.scene.shading_normal(hit.primitive, hit.barycentrics);
             let shading = material.shading_frame(geometric_normal, shading_normal, wo);
@@ -651,7 +622,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                 _ => None,
             };
             if learning && !delta && !self.carries_path {
-                if let (Some(last), Some(region), Some(guide)) = (scratch.vertices.last_mut(), region, self.guide) {
+                if let (false, Some(region), Some(guide)) = (scratch.path.is_empty(), region, self.guide) {
                     let (u, u_lobe) = (rng.next_vec2(), rng.next_f32());
                     let estimate = clock.time(|| match material.surface {
                         Surface::Diffuse { albedo } => {
@@ -662,7 +633,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                             guide.estimate_integral(region, wo, &bsdf, u)
                         }
                     });
-                    last.onward = Onward::Integral(estimate);
+                    scratch.path.estimate(estimate);
                 }
             }
             if depth + 1 >= settings.max_depth {
@@ -703,9 +674,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                     counters,
                 );
                 radiance += throughput * direct;
-                if let Some(last) = scratch.vertices.last_mut() {
-                    last.arriving += luminance(direct);
-                }
+                scratch.path.arrive(luminance(direct));
             }
 
             // Russian roulette, decided before the direction is drawn: a survival that
@@ -809,25 +778,16 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             // one, scaled by its factor.
             if learning {
                 if delta || region.is_none() || self.carries_path {
-                    if let Some(last) = scratch.vertices.last_mut() {
-                        last.onward = Onward::Carry(carried);
-                    }
+                    scratch.path.carry(carried);
                 }
-                scratch.vertices.push(LearningVertex {
-                    region,
-                    origin: point,
-                    length: f32::INFINITY,
-                    throughput: luminance(throughput),
+                let strategies = VertexStrategies {
                     // Drawn only for a focal guide: other guides' paths keep their numbers.
                     u_record: if self.focal.is_some() { rng.next_f32() } else { 0.5 },
                     focal_arrival,
                     focal_pdf_pending,
                     guide_arrival,
-                    direction: wi,
-                    pdf,
-                    arriving: 0.0,
-                    onward: Onward::End,
-                });
+                };
+                scratch.path.scattered(region, point, wi, pdf, luminance(throughput), strategies);
             }
             ray = Ray::new(self.spawn(point, geometric_normal, wi), wi);
             previous = Some((point, mis_pdf, sampled_delta, nee_cells));
@@ -838,8 +798,8 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         if learning {
             // Drawn after the path, so the share leaves the path's own numbers alone.
             let focal_learns = self.focal.is_some() && rng.next_f32() < settings.focal_learning_share;
-            let vertices = &scratch.vertices;
-            scratch.clock.time(|| self.learn_from_path(vertices, focal_learns));
+            let path = &scratch.path;
+            scratch.clock.time(|| self.learn_from_path(path, focal_learns));
         }
         if scratch.clock.enabled {
             counters.timed_paths += 1;
@@ -1012,50 +972,39 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         guide.update(cell, sample, (f * radiance).max_element());
     }
 
-    /// Applies Eq. (1) along a finished path, last vertex first. Rejected targets are
-    /// counted by the guide itself (its `stats()`).
-    fn learn_from_path(&self, vertices: &[LearningVertex<G::Region>], focal_learns: bool) {
+    /// Teaches the finished path to every learner: the directional guide its Eq. (1)
+    /// targets (from the recorder), the learned shares and the focal guide what arrived
+    /// along each direction. Rejected targets are counted by the guide itself (its
+    /// `stats()`).
+    fn learn_from_path(&self, path: &PathRecorder<G::Region, VertexStrategies>, focal_learns: bool) {
+        if let Some(guide) = self.guide {
+            path.learn(guide, self.settings.density_weighted_learning);
+        }
         let focal = self.focal.filter(|_| focal_learns);
-        let mut next_target = 0.0f32;
-        for vertex in vertices.iter().rev() {
-            let onward = match vertex.onward {
-                Onward::Integral(estimate) => estimate,
-                Onward::Carry(factor) => factor * next_target,
-                Onward::End => 0.0,
-            };
-            let target = vertex.arriving + onward;
-            if let (Some(region), Some(guide)) = (vertex.region, self.guide) {
-                if self.settings.density_weighted_learning {
-                    guide.update_sampled(region, vertex.direction, target, vertex.pdf);
-                } else {
-                    guide.update(region, vertex.direction, target);
-                }
-            }
-            if let (Some(shares), Some(arrival)) = (self.guide_shares, vertex.guide_arrival) {
+        if self.guide_shares.is_none() && focal.is_none() {
+            return;
+        }
+        for (vertex, target) in path.targets() {
+            let strategies = &vertex.extra;
+            if let (Some(shares), Some(arrival)) = (self.guide_shares, strategies.guide_arrival) {
                 shares.record(&StrategyArrival { integrand: arrival.integrand * target, ..arrival });
             }
-            if let (Some(focal), Some(arrival)) = (focal, vertex.focal_arrival) {
+            let Some(focal) = focal else { continue };
+            if let Some(arrival) = strategies.focal_arrival {
                 let integrand = arrival.integrand * target;
-                let focal_pdf = if vertex.focal_pdf_pending && integrand > 0.0 {
+                let focal_pdf = if strategies.focal_pdf_pending && integrand > 0.0 {
                     focal.pdf(arrival.point, vertex.direction)
                 } else {
                     arrival.focal_pdf
                 };
                 focal.record_arrival(&FocalArrival { integrand, focal_pdf, ..arrival });
             }
-            if let Some(focal) = focal {
-                let weight = vertex.throughput * target;
-                if weight > 0.0 {
-                    let record = FocalRecord {
-                        origin: vertex.origin,
-                        direction: vertex.direction,
-                        length: vertex.length,
-                        weight,
-                    };
-                    focal.record(&record, vertex.u_record);
-                }
+            let weight = vertex.throughput * target;
+            if weight > 0.0 {
+                let record =
+                    FocalRecord { origin: vertex.origin, direction: vertex.direction, length: vertex.length, weight };
+                focal.record(&record, strategies.u_record);
             }
-            next_target = target;
         }
     }
 
