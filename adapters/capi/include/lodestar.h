@@ -159,6 +159,11 @@ typedef uint32_t LodestarIntegralEstimator;
 // `lodestar_guide_release`.
 typedef struct LodestarGuide LodestarGuide;
 
+// An opaque path recorder: one per thread (its calls are not thread-safe; each thread
+// records its own path). Create with `lodestar_path_recorder_create`, free with
+// `lodestar_path_recorder_release`.
+typedef struct LodestarPathRecorder LodestarPathRecorder;
+
 // Everything that shapes a guide. Fill it with `lodestar_guide_config_default`, then
 // change what you need. Enum fields are `uint32_t` holding one of the named enum's
 // values; anything else is `LODESTAR_STATUS_UNKNOWN_ENUM_VALUE`.
@@ -382,6 +387,87 @@ enum LodestarStatus lodestar_guide_stats(const struct LodestarGuide *guide,
 // # Safety
 // `guide` must be NULL or a live handle.
 enum LodestarStatus lodestar_guide_validate(const struct LodestarGuide *guide);
+
+// Creates an empty recorder; `*out_recorder` owns it.
+//
+// # Safety
+// `out_recorder` must be NULL or valid for writing one pointer.
+enum LodestarStatus lodestar_path_recorder_create(struct LodestarPathRecorder **out_recorder);
+
+// Frees a recorder; the handle must not be used afterwards.
+//
+// # Safety
+// `recorder` must be NULL or a handle from create not yet released.
+enum LodestarStatus lodestar_path_recorder_release(struct LodestarPathRecorder *recorder);
+
+// Forgets the recorded path (keeping its memory): call before each path.
+//
+// # Safety
+// `recorder` must be NULL or a live handle used by this thread alone.
+enum LodestarStatus lodestar_path_recorder_clear(struct LodestarPathRecorder *recorder);
+
+// Records a vertex at `origin` (scene units) that scattered along `direction`
+// (normalised here), drawn with density `pdf` (per steradian, > 0; the whole mixture's
+// where the guide and the BSDF were mixed). `region` is what `lodestar_guide_locate`
+// gave here, or `LODESTAR_NO_REGION` (the vertex then learns nothing and a predecessor
+// that carries gets its target). `throughput` is the path's (luminance, ≥ 0) for what
+// arrives along `direction`.
+//
+// # Safety
+// `recorder` must be NULL or a live handle used by this thread alone.
+enum LodestarStatus lodestar_path_recorder_scattered(struct LodestarPathRecorder *recorder,
+                                                     struct LodestarRegion region,
+                                                     struct LodestarVec3 origin,
+                                                     struct LodestarVec3 direction,
+                                                     float pdf,
+                                                     float throughput);
+
+// The last recorded direction reached a surface `distance` away (scene units, ≥ 0).
+//
+// # Safety
+// `recorder` must be NULL or a live handle used by this thread alone.
+enum LodestarStatus lodestar_path_recorder_reached(struct LodestarPathRecorder *recorder,
+                                                   float distance);
+
+// Radiance (luminance, ≥ 0) arrived along the last recorded direction: the emission
+// seen there times its MIS weight against next-event estimation, or the light that the
+// vertex there reflected back from its own light sample. Calls add up.
+//
+// # Safety
+// `recorder` must be NULL or a live handle used by this thread alone.
+enum LodestarStatus lodestar_path_recorder_arrive(struct LodestarPathRecorder *recorder,
+                                                  float radiance);
+
+// The vertex the last recorded direction reached estimates Eq. (1)'s integral there
+// (≥ 0; `lodestar_guide_estimate_integral` gives one).
+//
+// # Safety
+// `recorder` must be NULL or a live handle used by this thread alone.
+enum LodestarStatus lodestar_path_recorder_estimate(struct LodestarPathRecorder *recorder,
+                                                    float integral);
+
+// The vertex the last recorded direction reached has no estimate of its own (a delta
+// surface, no region, or a renderer that learns from the path's continuation): it
+// passes its own target back times `factor` (≥ 0: its fs·cos/pdf and, where Russian
+// roulette ran there, 1/survival, as the throughput has it).
+//
+// # Safety
+// `recorder` must be NULL or a live handle used by this thread alone.
+enum LodestarStatus lodestar_path_recorder_carry(struct LodestarPathRecorder *recorder,
+                                                 float factor);
+
+// Teaches `guide` the recorded path: every vertex with a region learns its target of
+// Eq. (1), weighed by the density its direction was drawn with. Every region is checked
+// first: a stale one fails the call with `LODESTAR_STATUS_INVALID_REGION` and the guide
+// learns nothing from the path. `*out_accepted` gets how many updates the guide stored.
+// Thread-safe on the guide (lock-free), as `lodestar_guide_update`.
+//
+// # Safety
+// `recorder` must be NULL or a live handle not being changed by another thread; `guide`
+// NULL or a live handle; `out_accepted` NULL or writable.
+enum LodestarStatus lodestar_path_recorder_learn(const struct LodestarPathRecorder *recorder,
+                                                 const struct LodestarGuide *guide,
+                                                 size_t *out_accepted);
 
 // The bytes `lodestar_guide_save` writes for this guide now (it grows only if the
 // guide changes shape, which no call does). Thread-safe.

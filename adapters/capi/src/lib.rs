@@ -11,16 +11,17 @@
 //! # Threads
 //!
 //! `locate`, `sample`, `pdf`, `update`, the `estimate_integral` calls, `stats`,
-//! `validate`, `serialized_size` and `save` are lock-free and may run on one guide from
-//! any number of threads at once. `lodestar_guide_rebuild` and
+//! `validate`, `serialized_size`, `save` and a path recorder's `learn` are lock-free and
+//! may run on one guide from any number of threads at once. `lodestar_guide_rebuild` and
 //! `lodestar_guide_release` need the guide to themselves: no other call on the same
-//! guide may be in flight (call `rebuild` between passes). The error message is kept
-//! per thread.
+//! guide may be in flight (call `rebuild` between passes). A `LodestarPathRecorder`
+//! belongs to one thread at a time. The error message is kept per thread.
 #![deny(missing_docs, unsafe_op_in_unsafe_fn)]
 
 mod arguments;
 mod config;
 mod guide;
+mod recorder;
 mod serialize;
 mod status;
 mod types;
@@ -33,6 +34,12 @@ pub use guide::{
     lodestar_guide_create, lodestar_guide_estimate_integral, lodestar_guide_estimate_integral_lambertian,
     lodestar_guide_locate, lodestar_guide_pdf, lodestar_guide_rebuild, lodestar_guide_release, lodestar_guide_sample,
     lodestar_guide_stats, lodestar_guide_update, lodestar_guide_validate, LodestarEvalCos, LodestarGuide,
+};
+pub use recorder::{
+    lodestar_path_recorder_arrive, lodestar_path_recorder_carry, lodestar_path_recorder_clear,
+    lodestar_path_recorder_create, lodestar_path_recorder_estimate, lodestar_path_recorder_learn,
+    lodestar_path_recorder_reached, lodestar_path_recorder_release, lodestar_path_recorder_scattered,
+    LodestarPathRecorder,
 };
 pub use serialize::{lodestar_guide_load, lodestar_guide_save, lodestar_guide_serialized_size};
 pub use status::{lodestar_last_error, lodestar_status_name, LodestarStatus};

@@ -1,7 +1,8 @@
 // A minimal renderer loop guided through Lodestar's C API: a Cornell-style room with a
 // ceiling light and a block, intersected by brute force, rendered with BSDF sampling
-// alone and then with a guide that learns along every path (Dahm & Keller's Eq. 1),
-// over two threads. The guide is saved to a byte buffer, released, reloaded, checked to
+// alone and then with a guide that learns along every path (Dahm & Keller's Eq. 1, the
+// targets computed by the library's path recorder from what the loop records), over two
+// threads. The guide is saved to a byte buffer, released, reloaded, checked to
 // sample exactly as before, and used once more. Prints the image means with their
 // standard errors and exits non-zero when they disagree or any call fails.
 //
@@ -168,41 +169,39 @@ struct Sums {
 constexpr int kWidth = 48, kHeight = 36, kMaxDepth = 12;
 constexpr float kGuideProbability = 0.5f;
 
-// One path through pixel (px, py); learns into `guide` and samples it when `guided`.
-float trace_path(const Scene& scene, const LodestarGuide* guide, bool guided, int px, int py, Random& rng) {
+// One path through pixel (px, py): recorded into `recorder` for `guide` to learn from
+// (Eq. 1's targets come from the recorder), sampling the guide when `guided`.
+float trace_path(const Scene& scene, const LodestarGuide* guide, LodestarPathRecorder* recorder, bool guided, int px,
+                 int py, Random& rng) {
     const float tan_half_fov = std::tan(0.5f * 40.0f * kPi / 180.0f);
     float sx = (2 * (px + rng.uniform()) / kWidth - 1) * tan_half_fov * kWidth / kHeight;
     float sy = (1 - 2 * (py + rng.uniform()) / kHeight) * tan_half_fov;
     Vec3 origin{0.5f, 0.5f, -1.4f}, direction = normalize(Vec3{sx, sy, 1});
     float throughput = 1, radiance = 0;
-    LodestarRegion pending{LODESTAR_NO_REGION};  // the previous vertex's region ...
-    Vec3 pending_direction{0, 0, 0};             // ... and the direction it chose
-    LodestarUpdateOutcome outcome;
+    if (guide) check(lodestar_path_recorder_clear(recorder), "clear");
     for (int depth = 0; depth < kMaxDepth; ++depth) {
         float t;
         int index;
         bool hit = scene.intersect(origin, direction, t, index);
+        if (guide && hit) check(lodestar_path_recorder_reached(recorder, t), "reached");
         float emitted = 0;
         if (hit && scene.triangles[index].emitter)
             emitted = dot(direction, scene.triangles[index].normal) < 0 ? kLightRadiance : 0;
         if (!hit || scene.triangles[index].emitter) {
             radiance += throughput * emitted;
-            if (guide && pending.index != LODESTAR_NO_REGION)
-                check(lodestar_guide_update(guide, pending, to_c(pending_direction), emitted, &outcome), "update");
+            if (guide) check(lodestar_path_recorder_arrive(recorder, emitted), "arrive");
             break;
         }
         Vec3 x = origin + direction * t, n = scene.triangles[index].normal;
         if (dot(n, direction) > 0) n = n * -1.0f;
         LodestarRegion region{LODESTAR_NO_REGION};
         if (guide) check(lodestar_guide_locate(guide, to_c(x), to_c(n), &region), "locate");
-        // Eq. (1): what arrived at the previous vertex is this one's reflected Q.
-        if (guide && pending.index != LODESTAR_NO_REGION) {
+        // Eq. (1): beyond this vertex, the previous one learns this one's reflected Q.
+        if (guide && region.index != LODESTAR_NO_REGION) {
             float reflected = 0;
-            if (region.index != LODESTAR_NO_REGION)
-                check(lodestar_guide_estimate_integral_lambertian(guide, region, to_c(n), kAlbedo, 0.5f, 0.5f,
-                                                                  &reflected),
-                      "estimate_integral_lambertian");
-            check(lodestar_guide_update(guide, pending, to_c(pending_direction), reflected, &outcome), "update");
+            check(lodestar_guide_estimate_integral_lambertian(guide, region, to_c(n), kAlbedo, 0.5f, 0.5f, &reflected),
+                  "estimate_integral_lambertian");
+            check(lodestar_path_recorder_estimate(recorder, reflected), "estimate");
         }
         bool use_guide = guided && region.index != LODESTAR_NO_REGION;
         float u0 = rng.uniform(), u1 = rng.uniform();
@@ -222,16 +221,25 @@ float trace_path(const Scene& scene, const LodestarGuide* guide, bool guided, in
             check(lodestar_guide_pdf(guide, region, to_c(wi), &guide_pdf), "pdf");
             pdf = kGuideProbability * guide_pdf + (1 - kGuideProbability) * pdf;  // one-sample MIS
         }
-        throughput *= kAlbedo / kPi * cos_theta / pdf;
-        pending = region;
-        pending_direction = wi;
-        origin = x;
-        direction = wi;
+        float factor = kAlbedo / kPi * cos_theta / pdf;
+        throughput *= factor;
         if (depth >= 3) {  // Russian roulette
             float survive = std::fmin(throughput, 0.95f);
             if (rng.uniform() >= survive) break;
             throughput /= survive;
+            factor /= survive;
         }
+        if (guide) {
+            // Without an estimate of its own this vertex hands its target back, scaled.
+            if (region.index == LODESTAR_NO_REGION) check(lodestar_path_recorder_carry(recorder, factor), "carry");
+            check(lodestar_path_recorder_scattered(recorder, region, to_c(x), to_c(wi), pdf, throughput), "scattered");
+        }
+        origin = x;
+        direction = wi;
+    }
+    if (guide) {
+        size_t accepted;
+        check(lodestar_path_recorder_learn(recorder, guide, &accepted), "learn");
     }
     return radiance;
 }
@@ -247,9 +255,12 @@ Sums render(const Scene& scene, LodestarGuide* guide, bool guided, int passes, u
         for (int w = 0; w < kThreads; ++w) {
             workers.emplace_back([&, w] {
                 Random rng(seed * 1000003u + pass, uint64_t(w));
+                LodestarPathRecorder* recorder = nullptr;  // one per thread
+                check(lodestar_path_recorder_create(&recorder), "path_recorder_create");
                 for (int py = w; py < kHeight; py += kThreads)
                     for (int px = 0; px < kWidth; ++px)
-                        per_thread[w].add(trace_path(scene, guide, guided, px, py, rng));
+                        per_thread[w].add(trace_path(scene, guide, recorder, guided, px, py, rng));
+                check(lodestar_path_recorder_release(recorder), "path_recorder_release");
             });
         }
         for (std::thread& worker : workers) worker.join();

@@ -1,6 +1,6 @@
 /* Every error path of Lodestar's C API, called from C: NULL pointers, NaN and infinite
  * numbers, out-of-range arguments, wrong struct sizes, unknown enum values, stale
- * regions, small and corrupted buffers. Each check asserts the status code and that
+ * regions, small and corrupted buffers, and the path recorder's calls. Each check asserts the status code and that
  * lodestar_last_error() names the culprit; a final part updates one guide from four
  * threads at once. Prints one line per failed check and exits non-zero on any. */
 #include <math.h>
@@ -193,6 +193,62 @@ static void per_vertex_errors(LodestarGuide *guide) {
     EXPECT_OK(lodestar_guide_validate(guide));
 }
 
+/* The path recorder: its error paths, and a recorded path that teaches the guide. */
+static void recorder_errors(LodestarGuide *guide) {
+    LodestarVec3 up = {0, 1, 0}, centre = {0.5f, 0, 0.5f}, zero = {0, 0, 0}, nan3 = {NAN, 0, 0};
+    LodestarRegion region, none = {LODESTAR_NO_REGION}, past = {1u << 30};
+    LodestarPathRecorder *recorder = NULL;
+    size_t accepted = 99;
+
+    EXPECT(lodestar_path_recorder_create(NULL), LODESTAR_STATUS_NULL_ARGUMENT, "out_recorder");
+    EXPECT_OK(lodestar_path_recorder_create(&recorder));
+    EXPECT_OK(lodestar_guide_locate(guide, centre, up, &region));
+    EXPECT(lodestar_path_recorder_scattered(NULL, region, centre, up, 1.0f, 1.0f), LODESTAR_STATUS_NULL_ARGUMENT,
+           "recorder");
+    EXPECT(lodestar_path_recorder_scattered(recorder, region, nan3, up, 1.0f, 1.0f),
+           LODESTAR_STATUS_NON_FINITE_ARGUMENT, "origin");
+    EXPECT(lodestar_path_recorder_scattered(recorder, region, centre, zero, 1.0f, 1.0f),
+           LODESTAR_STATUS_INVALID_ARGUMENT, "direction");
+    EXPECT(lodestar_path_recorder_scattered(recorder, region, centre, up, 0.0f, 1.0f), LODESTAR_STATUS_INVALID_ARGUMENT,
+           "pdf");
+    EXPECT(lodestar_path_recorder_scattered(recorder, region, centre, up, NAN, 1.0f),
+           LODESTAR_STATUS_NON_FINITE_ARGUMENT, "pdf");
+    EXPECT(lodestar_path_recorder_scattered(recorder, region, centre, up, 1.0f, -1.0f),
+           LODESTAR_STATUS_INVALID_ARGUMENT, "throughput");
+    EXPECT(lodestar_path_recorder_reached(recorder, NAN), LODESTAR_STATUS_NON_FINITE_ARGUMENT, "distance");
+    EXPECT(lodestar_path_recorder_arrive(recorder, -2.0f), LODESTAR_STATUS_INVALID_ARGUMENT, "radiance");
+    EXPECT(lodestar_path_recorder_arrive(recorder, INFINITY), LODESTAR_STATUS_NON_FINITE_ARGUMENT, "radiance");
+    EXPECT(lodestar_path_recorder_estimate(recorder, NAN), LODESTAR_STATUS_NON_FINITE_ARGUMENT, "integral");
+    EXPECT(lodestar_path_recorder_carry(recorder, -1.0f), LODESTAR_STATUS_INVALID_ARGUMENT, "factor");
+    EXPECT(lodestar_path_recorder_clear(NULL), LODESTAR_STATUS_NULL_ARGUMENT, "recorder");
+    EXPECT(lodestar_path_recorder_learn(recorder, NULL, &accepted), LODESTAR_STATUS_NULL_ARGUMENT, "guide");
+    EXPECT(lodestar_path_recorder_learn(recorder, guide, NULL), LODESTAR_STATUS_NULL_ARGUMENT, "out_accepted");
+
+    /* Nothing recorded: nothing learned. */
+    EXPECT_OK(lodestar_path_recorder_learn(recorder, guide, &accepted));
+    TRUTH(accepted == 0);
+
+    /* A two-vertex path: the first vertex carries the second's target; the second has no
+     * region and learns nothing. A stale region fails the whole path. */
+    LodestarGuideStats before, after;
+    EXPECT_OK(lodestar_guide_stats(guide, &before));
+    EXPECT_OK(lodestar_path_recorder_scattered(recorder, past, centre, up, 0.5f, 1.0f));
+    EXPECT(lodestar_path_recorder_learn(recorder, guide, &accepted), LODESTAR_STATUS_INVALID_REGION, "vertex 0");
+    EXPECT_OK(lodestar_path_recorder_clear(recorder));
+    EXPECT_OK(lodestar_path_recorder_scattered(recorder, region, centre, up, 0.5f, 1.0f));
+    EXPECT_OK(lodestar_path_recorder_reached(recorder, 1.0f));
+    EXPECT_OK(lodestar_path_recorder_carry(recorder, 0.8f));
+    EXPECT_OK(lodestar_path_recorder_scattered(recorder, none, up, up, 1.0f, 0.8f));
+    EXPECT_OK(lodestar_path_recorder_arrive(recorder, 2.0f));
+    EXPECT_OK(lodestar_path_recorder_learn(recorder, guide, &accepted));
+    TRUTH(accepted == 1);
+    EXPECT_OK(lodestar_guide_stats(guide, &after));
+    TRUTH(after.accepted_updates == before.accepted_updates + 1);
+
+    EXPECT(lodestar_path_recorder_release(NULL), LODESTAR_STATUS_NULL_ARGUMENT, "recorder");
+    EXPECT_OK(lodestar_path_recorder_release(recorder));
+}
+
 static void buffer_errors(LodestarGuide *guide) {
     size_t size = 0, written = 0;
     EXPECT(lodestar_guide_serialized_size(guide, NULL), LODESTAR_STATUS_NULL_ARGUMENT, "out_size");
@@ -282,6 +338,7 @@ int main(void) {
     config.region_count = 16;
     EXPECT_OK(lodestar_guide_create(&config, floor_positions, 4, floor_indices, 2, &guide));
     per_vertex_errors(guide);
+    recorder_errors(guide);
     buffer_errors(guide);
     concurrent_updates(guide);
     EXPECT_OK(lodestar_guide_release(guide));
