@@ -2,7 +2,8 @@
 # The whole test suite, as CI runs it: set-up (with Embree 4 and a Vulkan driver for the
 # GPU tracer, Mesa's lavapipe where there is no GPU), formatting, lints, docs, the no_std
 # core build and its dependency list, every test of the workspace (Rust, C and C++ under
-# valgrind, Embree against obvhs, the GPU tracer against the CPU one), then a 30-second
+# valgrind, Embree against obvhs, the GPU tracer against the CPU one), the guided path
+# tracer example (its guided mean against its unguided one), then a 30-second
 # smoke run of each fuzz target. Prints each stage's time.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -38,5 +39,7 @@ stage "clippy" cargo clippy --workspace --all-targets --features "$features" -- 
 stage "docs" env RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --features "$features"
 stage "no_std core" core_dependencies_are_glam_and_libm
 stage "tests" cargo test --workspace --features "$features"
+# The example a renderer author copies: it fails unless guided and unguided means agree.
+stage "example" cargo run --profile test --example guided_path_tracer
 stage "fuzz smoke" ./scripts/fuzz.sh "${LODESTAR_FUZZ_SECONDS:-30}"
 echo "==> all stages passed in $((SECONDS - total)) s"
