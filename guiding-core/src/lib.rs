@@ -54,6 +54,10 @@ pub mod tree;
 #[cfg(feature = "volume")]
 pub mod volume;
 
+/// The vector types of every signature here, re-exported so a renderer uses the same
+/// version of glam as this crate.
+pub use glam;
+
 pub use bytes::reseal_checksum;
 pub use distribution::{
     DirectionSample, DirectionalDistribution, UniformHemisphere, UniformSphere, MIN_SAMPLED_COS_THETA,
