@@ -5,7 +5,20 @@ use std::path::Path;
 
 use plotters::prelude::*;
 
-use crate::cli::Checkpoint;
+use crate::metrics::ImageError;
+
+/// One point of an error-against-time curve.
+#[derive(Clone, Copy, Debug)]
+pub struct Checkpoint {
+    /// Seconds of rendering.
+    pub seconds: f64,
+    /// Samples per pixel reached.
+    pub spp: u32,
+    /// Path counters at that time.
+    pub counters: crate::integrator::PathCounters,
+    /// Error against the reference.
+    pub error: ImageError,
+}
 
 /// One row of compare.csv.
 #[derive(Clone, Debug, PartialEq)]

@@ -1,0 +1,391 @@
+//! The tracing options every rendering command shares, and their parsers.
+
+use crate::scene_intersector::IntersectorChoice;
+use clap::Args;
+use guiding_core::{HemisphereMapping, IntegralEstimator, LearningRate, LightUpdateRule};
+
+use super::prepare::{Device, GuideShare, Prepared};
+use crate::directional_guide::GuideStructure;
+use crate::film::Combine;
+use crate::integrator::{EnvironmentSampling, LightSelection, Method};
+use crate::lights::MAX_LIGHT_SPLIT;
+use crate::schedule::Schedule;
+
+/// `--resolution`: W×H within the largest image side.
+pub(super) fn parse_resolution(s: &str) -> Result<[u32; 2], String> {
+    let [width, height] = parse_patches(s)?;
+    let limit = crate::scene::MAX_IMAGE_SIDE;
+    if width == 0 || height == 0 || width > limit || height > limit {
+        return Err(format!("`{s}`: each side must be in 1..={limit}"));
+    }
+    Ok([width, height])
+}
+
+/// Renders `prepared` at `resolution` when one is given.
+pub(super) fn resize(prepared: &mut Prepared, resolution: Option<[u32; 2]>) {
+    if let Some([width, height]) = resolution {
+        prepared.scene.camera = prepared.scene.camera.with_resolution(width, height);
+    }
+}
+
+/// The learned guide share's default cost of guiding (`--guide-share-cost`).
+pub const GUIDE_SHARE_COST: f32 = 0.3;
+
+/// Options shared by every command that traces paths.
+#[derive(Debug, Args, Clone)]
+pub struct TraceOptions {
+    /// The directional guide of the guided methods: auto (a hemisphere grid unless every
+    /// surface is a mirror or glass; see the printed plan), hemisphere (probes with
+    /// hemispheres of patches), volume (full-sphere tables in an adaptive octree),
+    /// mixture (grid cells with vMF mixtures), or none. compare
+    /// takes several, comma-separated, and runs each guided method with each.
+    #[arg(long, default_value = "auto", value_delimiter = ',', value_parser = parse_guide_choice)]
+    pub(super) guide: Vec<GuideChoice>,
+    /// Lobes per mixture (--guide mixture), 1..=8. 2 measured best on door and cornell
+    /// (against 3 and 6, 15 s each: fewer lobes cost less per sample).
+    #[arg(long, default_value_t = 2)]
+    pub(super) mixture_lobes: usize,
+    /// Image size W×H instead of the scene's (same vertical field of view), e.g. 320x180.
+    #[arg(long, value_parser = parse_resolution)]
+    pub(super) resolution: Option<[u32; 2]>,
+    /// Random seed.
+    #[arg(long, default_value_t = 1)]
+    pub(super) seed: u64,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    pub(super) threads: Option<usize>,
+    /// Most scattering vertices per path.
+    #[arg(long, default_value_t = 32)]
+    pub(super) max_depth: u32,
+    /// Russian roulette after this many vertices.
+    #[arg(long, default_value_t = 4)]
+    pub(super) rr_depth: u32,
+    /// Probability of sampling the guide instead of the BSDF, in [0, 1]: with the learned
+    /// share (the CPU's default) the most any region takes. Default 0.5 on the CPU: against
+    /// 0.3, guided-nee relMSE × spp at 30 s, seeds 41 and 42, cornell 128² 0.154/0.153
+    /// against 0.167/0.162, door 160×120 11.77/11.18 against 11.44/11.17, glossy 128²
+    /// 17.63/16.90 against 17.93/16.98; Veach Ajar relMSE at 60 s 3.61/3.18 against
+    /// 3.43/3.26. 0.3 on the GPU, whose share is fixed at every vertex (0.5 compounds
+    /// larger mixture weights over bounces).
+    #[arg(long)]
+    pub(super) p_guide: Option<f32>,
+    /// Only the first N vertices of each path use the guide; deeper ones sample the BSDF
+    /// alone, at nee's cost per vertex. Default 1 on the CPU, measured best: guided-nee ÷
+    /// nee at 20 s on cornell 128² 1.01–1.09 (every vertex: 1.29), on door 160×120 1.21
+    /// (every vertex: 1.45; 2: 1.16). The GPU tracer guides every vertex.
+    #[arg(long)]
+    pub(super) guide_depth: Option<u32>,
+    /// Most probability of aiming at the focal guide (points in space where light squeezes
+    /// through, learned from the segments that carried it) instead of the BSDF, at every
+    /// vertex of a guided method; each region of space learns its own share up to it (the
+    /// least variance among 0, 0.02, … 0.5, --focal-share-cost); p_guide + p_focal ≤ 1. 0 leaves it out.
+    /// Default 0.5 (at most 1 − p_guide) on the CPU, 0 on the GPU (which has no focal
+    /// guide). 0.5 with `--guide none --p-guide 0 --schedule iterative`, at 60 s: door
+    /// 160×120 0.57–0.60 × nee's relMSE, cornell 128² 1.02 ×.
+    #[arg(long)]
+    pub(super) p_focal: Option<f32>,
+    /// The focal guide's most boxes (its densest leaves), 1..=1024.
+    #[arg(long)]
+    pub(super) focal_boxes: Option<u32>,
+    /// The focal guide's density ratio: a leaf is sampled when its density is at least
+    /// this many times the occupied mean.
+    #[arg(long)]
+    pub(super) focal_ratio: Option<f32>,
+    /// The focal guide's split share: a leaf holding more of the mass splits.
+    #[arg(long)]
+    pub(super) focal_split: Option<f32>,
+    /// The focal guide's merge ratio: neighbouring focal leaves whose densities differ by
+    /// at most this factor become one box; 0 keeps every leaf its own box.
+    #[arg(long)]
+    pub(super) focal_merge: Option<f32>,
+    /// Points along each recorded segment where the focal guide deposits its mass, 1..=64,
+    /// or 0: exactly, into every octree leaf the segment crosses by the length inside.
+    /// Default 4: exact deposits measured no better on door 160×120 (30 s, seed 41, relMSE ×
+    /// spp 12.3 against 11.9), the octree's leaves staying about as coarse (7–14 cm around
+    /// a 1 cm gap) either way.
+    #[arg(long)]
+    pub(super) focal_deposits: Option<u32>,
+    /// Share of paths the focal guide learns from, in (0, 1]. 0.25 measured best (60 s,
+    /// against 1: cornell 128² ÷ nee 1.02 against 1.06–1.20, its paths/s 0.98 × nee's
+    /// against 0.81–0.92; door 160×120 0.60 against 0.57).
+    #[arg(long, default_value_t = 0.25)]
+    pub(super) focal_learn: f32,
+    /// The directional guide's share of the scattering: fixed (--p-guide at every guided
+    /// vertex) or learned (each cell of the focal guide's selection grid picks, up to
+    /// --p-guide, the share whose estimator had the least variance times its cost
+    /// (--guide-share-cost), as the focal guide does; where it picks 0 the guide is not even located). Default learned on
+    /// the CPU, fixed on the GPU (which learns no share). With `--guide hemisphere
+    /// --schedule iterative --p-guide 0.3 --p-focal 0.5`, 60 s, ÷ nee (seeds 21, 22):
+    /// door 160×120 0.494 and 0.486, cornell 128² 0.966 and 1.218 (per sample 0.80 both
+    /// times; its paths/s 0.83 and 0.66 of nee's).
+    #[arg(long, value_parser = GuideShare::from_name)]
+    pub(super) guide_share: Option<GuideShare>,
+    /// The focal guide's selection cells along the scene's longest side, 1..=64: each
+    /// learns its own probability of aiming at the boxes.
+    #[arg(long)]
+    pub(super) focal_cells: Option<u32>,
+    /// The learned guide share's cost of guiding, ≥ 0: a cell gives the directional guide a
+    /// share above 0 only where the variance it leaves, times 1 + this, is below the
+    /// variance at 0 (the guide's lookups cost time at every vertex of the cell). 0.3
+    /// measured best: against 0, guided-nee at 30 s, relMSE ÷ (seeds 41 and 42), door
+    /// 160×120 0.94/0.96 (the focal guide serves it: the guide kept 1 of 96 cells, per
+    /// sample equal), glossy 128² 0.97/0.95, many_lights 160×120 0.97/0.98, cornell 128²
+    /// 1.01/1.04 (per sample 1.01/1.00); 1 lost 19 % per sample on cornell.
+    #[arg(long, default_value_t = GUIDE_SHARE_COST)]
+    pub(super) guide_share_cost: f32,
+    /// The focal guide's selection cost, ≥ 0, as --guide-share-cost for aiming at the
+    /// boxes. Default 0: at 0.1 or 0.3 for both, door 160×120 lost 12 % and 87 % per sample
+    /// (30 s, seed 41): where both strategies serve a cell each one's own gain looks small
+    /// and both were dropped.
+    #[arg(long)]
+    pub(super) focal_share_cost: Option<f32>,
+    /// Learning rate: simple (α = 1/(1+visits)), region, exponential:ALPHA or global:EXPONENT.
+    #[arg(long, default_value = "simple", value_parser = parse_learning_rate)]
+    pub(super) learning_rate: LearningRate,
+    /// Integral of Eq. (1): sampled (the weighted sum for diffuse surfaces, one BSDF
+    /// sample for glossy ones: on Veach Ajar 3× the paths/s of weighted, and a 4.7× lower
+    /// relMSE at 30 s), weighted (BSDF-weighted sum over every patch), stratified, max, or
+    /// path (the path's own continuation, no lookup). Default: path for the tree,
+    /// sampled for the others.
+    #[arg(long, value_parser = parse_integral)]
+    pub(super) integral: Option<IntegralEstimator>,
+    /// When guided methods learn: online (every pass, every pass kept) or iterative
+    /// (training iterations of 1, 2, 4, … passes with a refit after each, then a frozen
+    /// final image; --combine says how the iterations make the image). Default
+    /// iterative on the CPU, online on the GPU (which learns online only).
+    #[arg(long, value_parser = Schedule::from_name)]
+    pub(super) schedule: Option<Schedule>,
+    /// How the iterative schedule's iterations make the image: final (the frozen last
+    /// one alone), samples (every pass alike, unbiased) or inverse-variance (each
+    /// iteration by the inverse of its estimated relative variance, estimated at each
+    /// pixel without it, and no sample above one of the latest iteration). Door 160×120,
+    /// 30 s, focal guided-nee, relMSE × spp, seeds 11 and 12: samples 12.82 and 12.60,
+    /// inverse-variance 12.83 and 12.26, final 10.98 and 10.97 (of fewer samples: relMSE
+    /// 1.5 times); cornell 128²: 0.194/0.198 against 0.195/0.200. Samples stays.
+    #[arg(long, default_value = Combine::default().name(), value_parser = Combine::from_name)]
+    pub(super) combine: Combine,
+    /// The tree guide's memory budget, MiB.
+    #[arg(long, default_value_t = 16.0)]
+    pub(super) tree_mib: f64,
+    /// The tree's spatial split constant c: a leaf splits past c·√R of an epoch's R records.
+    #[arg(long)]
+    pub(super) tree_threshold: Option<f32>,
+    /// The tree's directional split share ρ of a leaf's flux, in (0, 1).
+    #[arg(long)]
+    pub(super) tree_flux_fraction: Option<f32>,
+    /// Whether the tree's distributions fold onto the normal's hemisphere (on, off).
+    #[arg(long, value_parser = parse_switch)]
+    pub(super) tree_fold: Option<bool>,
+    /// Patches per hemisphere as U×V, e.g. 8x16 (for --guide volume: bands of cos θ ×
+    /// sectors of φ over the whole sphere).
+    #[arg(long, default_value = "8x16", value_parser = parse_patches)]
+    pub(super) patches: [u32; 2],
+    /// cylindrical or concentric.
+    #[arg(long, default_value = "cylindrical", value_parser = parse_mapping)]
+    pub(super) mapping: HemisphereMapping,
+    /// Guide memory budget, MiB. 0.5 measured best on door (the tables stay in the L2
+    /// cache) and equal on cornell; guiding-core's own default is 2.
+    #[arg(long, default_value_t = 0.5)]
+    pub(super) guide_mib: f64,
+    /// Q of every patch before learning (radiance).
+    #[arg(long)]
+    pub(super) initial_q: Option<f32>,
+    /// Share of each probe's sampling probability spread uniformly, in [0, 1].
+    #[arg(long)]
+    pub(super) uniform_mix: Option<f32>,
+    /// Largest angle between a hit's normal and its probe's, degrees.
+    #[arg(long)]
+    pub(super) max_normal_angle: Option<f32>,
+    /// Exponent γ of the sampling weights Q^γ, in (0, 1].
+    #[arg(long)]
+    pub(super) sampling_exponent: Option<f32>,
+    /// Whether a probe samples its patches by Q·∫cos (the product with a Lambertian
+    /// surface's cosine) rather than by Q alone (on, off). Default on for the CPU: with
+    /// `--guide hemisphere --guide-share learned --schedule iterative --p-guide 0.3
+    /// --p-focal 0.5`, 30 s, relMSE × spp off → on, seeds 31 and 32: cornell 128² 0.160 →
+    /// 0.149 and 0.162 → 0.149, door 160×120 15.67 → 14.92 and 13.99 → 13.79. The GPU
+    /// tracer samples by Q alone.
+    #[arg(long, value_parser = parse_switch)]
+    pub(super) cosine_product: Option<bool>,
+    /// Guided methods: seconds of training passes whose samples are discarded (their
+    /// time counts towards --seconds).
+    #[arg(long, default_value_t = 0.0)]
+    pub(super) train_seconds: f64,
+    /// Ray tracing library: auto (Embree where this lodestar was built with the `embree`
+    /// feature, as scripts/render.sh builds it, else obvhs), obvhs (CWBVH), obvhs-bvh2, or
+    /// embree. Embree measured 1.16–1.22× obvhs's nee paths/s (cornell 128², door 160×120,
+    /// 20 s) and 1.30–1.34× its guided-nee paths/s.
+    #[arg(long, default_value = "auto", value_parser = IntersectorChoice::from_name)]
+    pub(super) intersector: IntersectorChoice,
+    /// Where paths are traced: cpu (all cores), or gpu (a wgpu compute shader on a
+    /// Vulkan adapter; needs the `gpu` feature). compare takes gpu:METHOD instead.
+    #[arg(long, default_value = "cpu", value_parser = Device::from_name)]
+    pub(super) device: Device,
+    /// Next-event light selection: auto (learned with many lights, else power; see the
+    /// printed plan), uniform, power, or learned (Eq. 3, per grid cell).
+    #[arg(long, default_value = "auto", value_parser = parse_light_selection)]
+    pub(super) light_selection: Auto<LightSelection>,
+    /// Learned selection's rule: mean (occluded rays count as zero), unoccluded (the seed's
+    /// Eq. 3: only arriving rays), or visibility (arrived / shot, times power).
+    #[arg(long, default_value = "mean", value_parser = parse_light_rule)]
+    pub(super) light_rule: LightUpdateRule,
+    /// Next-event gate of guided methods (CPU): a grid cell whose share of arriving shadow
+    /// rays is v estimates next-event light with probability clamp(SCALE·v, FLOOR, 1), and
+    /// otherwise leaves its light to the scattered direction (MIS-weighted alike, so
+    /// unbiased). 0 always shoots. 20 measured best: guided-nee relMSE at fixed spp, 20
+    /// against 5 (seeds 5 and 6), many_lights 160×120 512 spp 1.87e-3/1.88e-3 against
+    /// 2.15e-3/2.18e-3 (ungated 1.82e-3; nee 1.88e-3) with 0.5 % more rays, door 160×120
+    /// 256 spp 5.37e-2/5.71e-2 against 5.28e-2/6.12e-2 (ungated 6.18e-2, 1.5 times the
+    /// rays), cornell and glossy 128² 512 spp 1 % and 1 % lower. Scale 5 had cut rays on
+    /// door and skipped cells on many_lights where few but bright shadow rays arrive.
+    #[arg(long, default_value_t = 20.0)]
+    pub(super) nee_gate: f32,
+    /// The next-event gate's least probability of a shadow ray (FLOOR above), in (0, 1]. 0.03 against
+    /// 0.1 on door (30 s, seeds 11 and 12): relMSE 0.89 and 1.04 times, so 0.1 stays.
+    #[arg(long, default_value_t = 0.1)]
+    pub(super) nee_gate_floor: f32,
+    /// Learned selection's memory budget, MiB.
+    #[arg(long, default_value_t = 1.0)]
+    pub(super) light_guide_mib: f64,
+    /// Segments per edge each emissive triangle is cut into for next-event estimation of
+    /// guided methods (CPU), each part a light that learned selection picks on its own (so a
+    /// region that sees a sliver of a large emitter samples that sliver): 1..=16, or auto
+    /// (scenes with few emissive triangles are cut into about 64 lights, at most 8 segments
+    /// per edge; see the printed plan). Baselines and the GPU tracer use whole triangles.
+    /// 1 measured best at equal time: auto against 1, guided-nee ÷ nee at 60 s, seed 41,
+    /// door 160×120 0.526 against 0.443 and cornell 128² 0.954 against 0.922 (per sample
+    /// 0.72 against 0.78 of nee's, but the learned selection's cost: paths/s 0.73 of nee's
+    /// against 0.84); Veach Ajar 1280×720, guided-nee's relMSE auto ÷ 1 0.97 and 0.84
+    /// (seeds 41, 42).
+    #[arg(long, default_value = "1", value_parser = parse_light_split)]
+    pub(super) light_split: Auto<u32>,
+    /// Next-event environment sampling: auto (tiles when there is an environment; see the
+    /// printed plan), luminance (plain importance sampling), or tiles (learned per cell).
+    #[arg(long, default_value = "auto", value_parser = parse_environment_sampling)]
+    pub(super) env_sampling: Auto<EnvironmentSampling>,
+    /// Environment tiles across × down the lat-long map. 32x16 measured best on window
+    /// (against 8x4, 16x8 and 64x32; 2 seeds × 15 s).
+    #[arg(long, default_value = "32x16", value_parser = parse_patches)]
+    pub(super) env_tiles: [u32; 2],
+    /// Share of each cell's tile probability kept in proportion to power, in [0, 1).
+    /// 0.1 measured best on window (against 0.2 and 0.4).
+    #[arg(long, default_value_t = 0.1)]
+    pub(super) env_power_mix: f32,
+    /// Environment-tile guide's memory budget for its per-cell tables, MiB.
+    #[arg(long, default_value_t = 1.0)]
+    pub(super) env_guide_mib: f64,
+}
+
+/// A choice given on the command line, or `None` for `auto` (the plan decides). A
+/// newtype, as clap reads a bare `Option` field as "may be absent".
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Auto<T>(pub(super) Option<T>);
+
+impl<T> Auto<T> {
+    pub(super) fn parse(s: &str, parse: impl Fn(&str) -> Result<T, String>) -> Result<Self, String> {
+        if s == "auto" {
+            Ok(Auto(None))
+        } else {
+            parse(s).map(|choice| Auto(Some(choice)))
+        }
+    }
+}
+
+pub(super) fn parse_environment_sampling(s: &str) -> Result<Auto<EnvironmentSampling>, String> {
+    Auto::parse(s, EnvironmentSampling::from_name)
+}
+
+pub(super) fn parse_light_selection(s: &str) -> Result<Auto<LightSelection>, String> {
+    Auto::parse(s, LightSelection::from_name)
+}
+
+pub(super) fn parse_light_split(s: &str) -> Result<Auto<u32>, String> {
+    Auto::parse(s, |s| match s.parse::<u32>() {
+        Ok(n) if (1..=MAX_LIGHT_SPLIT).contains(&n) => Ok(n),
+        _ => Err(format!("--light-split `{s}` must be auto or a whole number in 1..={MAX_LIGHT_SPLIT}")),
+    })
+}
+
+/// `--guide`: a structure, `auto` (the default structure) or `none`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum GuideChoice {
+    Auto,
+    Structure(GuideStructure),
+    Off,
+}
+
+impl GuideChoice {
+    /// The structure to build, if any: `auto` is the hemisphere grid.
+    pub(super) fn structure(self) -> Option<GuideStructure> {
+        match self {
+            GuideChoice::Auto => Some(GuideStructure::Hemisphere),
+            GuideChoice::Structure(structure) => Some(structure),
+            GuideChoice::Off => None,
+        }
+    }
+}
+
+pub(super) fn parse_guide_choice(s: &str) -> Result<GuideChoice, String> {
+    match s {
+        "auto" => Ok(GuideChoice::Auto),
+        "none" => Ok(GuideChoice::Off),
+        _ => GuideStructure::from_name(s).map(GuideChoice::Structure),
+    }
+}
+
+pub(super) fn parse_light_rule(s: &str) -> Result<LightUpdateRule, String> {
+    match s {
+        "mean" => Ok(LightUpdateRule::MeanContribution),
+        "unoccluded" => Ok(LightUpdateRule::UnoccludedAverage),
+        "visibility" => Ok(LightUpdateRule::VisibilityRatio),
+        _ => Err(format!("unknown light rule `{s}` (mean, unoccluded, visibility)")),
+    }
+}
+
+pub(super) fn parse_method(s: &str) -> Result<Method, String> {
+    Method::from_name(s).ok_or_else(|| format!("unknown integrator `{s}` (pt, nee, guided, guided-nee)"))
+}
+
+pub(super) fn parse_learning_rate(s: &str) -> Result<LearningRate, String> {
+    let number = |v: &str| v.parse::<f32>().map_err(|e| format!("`{v}`: {e}"));
+    match s.split_once(':') {
+        None if s == "simple" => Ok(LearningRate::SimpleAverage),
+        None if s == "region" => Ok(LearningRate::RegionVisits),
+        Some(("exponential", alpha)) => Ok(LearningRate::Exponential { alpha: number(alpha)? }),
+        Some(("global", exponent)) => Ok(LearningRate::Global { exponent: number(exponent)? }),
+        _ => Err(format!("unknown learning rate `{s}` (simple, region, exponential:ALPHA, global:EXPONENT)")),
+    }
+}
+
+pub(super) fn parse_integral(s: &str) -> Result<IntegralEstimator, String> {
+    match s {
+        "weighted" => Ok(IntegralEstimator::BsdfWeightedSum),
+        "stratified" => Ok(IntegralEstimator::StratifiedPatches),
+        "max" => Ok(IntegralEstimator::MaxEntry),
+        "sampled" => Ok(IntegralEstimator::BsdfSampled),
+        "path" => Ok(IntegralEstimator::PathContinuation),
+        _ => Err(format!("unknown integral estimator `{s}` (weighted, stratified, max, sampled, path)")),
+    }
+}
+
+pub(super) fn parse_switch(s: &str) -> Result<bool, String> {
+    match s {
+        "on" => Ok(true),
+        "off" => Ok(false),
+        _ => Err(format!("`{s}` is neither on nor off")),
+    }
+}
+
+pub(super) fn parse_patches(s: &str) -> Result<[u32; 2], String> {
+    let (u, v) = s.split_once('x').ok_or_else(|| format!("`{s}` is not U×V like 8x16"))?;
+    let parse = |t: &str| t.parse::<u32>().map_err(|e| format!("`{t}`: {e}"));
+    Ok([parse(u)?, parse(v)?])
+}
+
+pub(super) fn parse_mapping(s: &str) -> Result<HemisphereMapping, String> {
+    match s {
+        "cylindrical" => Ok(HemisphereMapping::Cylindrical),
+        "concentric" => Ok(HemisphereMapping::ConcentricSquare),
+        _ => Err(format!("unknown mapping `{s}` (cylindrical, concentric)")),
+    }
+}

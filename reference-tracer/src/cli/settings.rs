@@ -1,0 +1,248 @@
+//! The options translated into the settings of the guides, learners and integrator.
+
+use guiding_core::volume::SphereLayout;
+use guiding_core::{
+    EnvTileGuideSettings, FocalGuideSettings, GaussianMixtureSettings, HemisphereGridSettings, IntegralEstimator,
+    IrradianceVolumeSettings, LightGuideSettings, NextEventGateSettings, PatchLayout, SpatialDirectionalTreeSettings,
+    UpdateRule,
+};
+
+use super::options::{GuideChoice, TraceOptions};
+use super::prepare::{Device, GuideShare, LightRequest};
+use crate::directional_guide::{DirectionalGuideSettings, GuideStructure};
+use crate::integrator::{IntegratorSettings, Method};
+use crate::plan::GuidePlan;
+use crate::schedule::Schedule;
+
+impl TraceOptions {
+    /// The settings of `structure` from the options (budget, update rule and the
+    /// structure's own).
+    pub(super) fn guide_settings(&self, structure: GuideStructure) -> Result<DirectionalGuideSettings, String> {
+        let hemisphere = self.hemisphere_settings()?;
+        Ok(match structure {
+            GuideStructure::Hemisphere => hemisphere.into(),
+            GuideStructure::Volume => {
+                let defaults = IrradianceVolumeSettings::default();
+                let settings = IrradianceVolumeSettings {
+                    budget_bytes: hemisphere.budget_bytes,
+                    layout: SphereLayout { resolution: self.patches },
+                    update_rule: hemisphere.update_rule,
+                    initial_q: self.initial_q.unwrap_or(defaults.initial_q),
+                    uniform_mix: self.uniform_mix.unwrap_or(defaults.uniform_mix),
+                    ..defaults
+                };
+                settings.validate().map_err(|e| format!("volume guide: {e}"))?;
+                settings.into()
+            }
+            GuideStructure::Mixture => {
+                let defaults = GaussianMixtureSettings::default();
+                let settings = GaussianMixtureSettings {
+                    budget_bytes: hemisphere.budget_bytes,
+                    lobes: self.mixture_lobes,
+                    update_rule: hemisphere.update_rule,
+                    initial_q: self.initial_q.unwrap_or(defaults.initial_q),
+                    uniform_mix: self.uniform_mix.unwrap_or(defaults.uniform_mix),
+                    ..defaults
+                };
+                settings.validate().map_err(|e| format!("mixture guide: {e}"))?;
+                settings.into()
+            }
+            GuideStructure::Tree => {
+                if !(self.tree_mib.is_finite() && self.tree_mib > 0.0) {
+                    return Err(format!("--tree-mib {} must be positive", self.tree_mib));
+                }
+                let defaults = SpatialDirectionalTreeSettings::default();
+                let settings = SpatialDirectionalTreeSettings {
+                    budget_bytes: (self.tree_mib * (1 << 20) as f64) as usize,
+                    update_rule: UpdateRule {
+                        learning_rate: self.learning_rate,
+                        integral: self.integral.unwrap_or(defaults.update_rule.integral),
+                    },
+                    uniform_mix: self.uniform_mix.unwrap_or(defaults.uniform_mix),
+                    spatial_threshold: self.tree_threshold.unwrap_or(defaults.spatial_threshold),
+                    flux_fraction: self.tree_flux_fraction.unwrap_or(defaults.flux_fraction),
+                    fold_to_hemisphere: self.tree_fold.unwrap_or(defaults.fold_to_hemisphere),
+                    ..defaults
+                };
+                settings.validate().map_err(|e| format!("tree guide: {e}"))?;
+                settings.into()
+            }
+        })
+    }
+
+    /// The one `--guide` of `render` and `reference`.
+    pub(super) fn single_guide(&self) -> Result<GuideChoice, String> {
+        match self.guide.as_slice() {
+            [choice] => Ok(*choice),
+            _ => Err("--guide takes one structure here (several only with compare)".into()),
+        }
+    }
+
+    /// The directional guide's most share: `--p-guide`, else 0.5 on the CPU (where each
+    /// region learns its own share up to it) and 0.3 on the GPU (a fixed share).
+    pub(super) fn p_guide(&self) -> f32 {
+        match (self.p_guide, self.device) {
+            (Some(p), _) => p,
+            (None, Device::Gpu) => 0.3,
+            (None, _) => 0.5,
+        }
+    }
+
+    /// The focal guide's most share: `--p-focal`, else 0.5 (at most 1 − p_guide) on the
+    /// CPU and 0 on the GPU.
+    pub(super) fn p_focal(&self) -> f32 {
+        match (self.p_focal, self.device) {
+            (Some(p), _) => p,
+            (None, Device::Gpu) => 0.0,
+            (None, _) => 0.5f32.min(1.0 - self.p_guide()),
+        }
+    }
+
+    /// `--guide-share`, else learned on the CPU and fixed on the GPU.
+    pub(super) fn guide_share(&self) -> GuideShare {
+        match (self.guide_share, self.device) {
+            (Some(share), _) => share,
+            (None, Device::Gpu) => GuideShare::Fixed,
+            (None, _) => GuideShare::Learned,
+        }
+    }
+
+    /// `--schedule`, else iterative on the CPU and online on the GPU.
+    pub(super) fn schedule(&self) -> Schedule {
+        match (self.schedule, self.device) {
+            (Some(schedule), _) => schedule,
+            (None, Device::Gpu) => Schedule::Online,
+            (None, _) => Schedule::Iterative,
+        }
+    }
+
+    pub(super) fn focal_settings(&self) -> Result<FocalGuideSettings, String> {
+        let p_focal = self.p_focal();
+        if !(0.0..=1.0 - self.p_guide()).contains(&p_focal) {
+            return Err(format!("--p-focal {p_focal} must be in [0, 1 − p_guide = {}]", 1.0 - self.p_guide()));
+        }
+        if !(self.focal_learn > 0.0 && self.focal_learn <= 1.0) {
+            return Err(format!("--focal-learn {} must be in (0, 1]", self.focal_learn));
+        }
+        let defaults = FocalGuideSettings::default();
+        let settings = FocalGuideSettings {
+            max_boxes: self.focal_boxes.unwrap_or(defaults.max_boxes),
+            focal_ratio: self.focal_ratio.unwrap_or(defaults.focal_ratio),
+            split_share: self.focal_split.unwrap_or(defaults.split_share),
+            share_resolution: self.focal_cells.unwrap_or(defaults.share_resolution),
+            share_cost: self.focal_share_cost.unwrap_or(defaults.share_cost),
+            merge_ratio: self.focal_merge.unwrap_or(defaults.merge_ratio),
+            deposits_per_segment: self.focal_deposits.unwrap_or(defaults.deposits_per_segment),
+            ..defaults
+        };
+        settings.validate().map_err(|e| format!("focal guide: {e}"))?;
+        Ok(settings)
+    }
+
+    pub(super) fn hemisphere_settings(&self) -> Result<HemisphereGridSettings, String> {
+        if !(self.guide_mib.is_finite() && self.guide_mib > 0.0) {
+            return Err(format!("--guide-mib {} must be positive", self.guide_mib));
+        }
+        if !(0.0..=1.0).contains(&self.p_guide()) {
+            return Err(format!("--p-guide {} must be in [0, 1]", self.p_guide()));
+        }
+        let defaults = HemisphereGridSettings::default();
+        let settings = HemisphereGridSettings {
+            budget_bytes: (self.guide_mib * (1 << 20) as f64) as usize,
+            layout: PatchLayout { mapping: self.mapping, resolution: self.patches },
+            update_rule: UpdateRule {
+                learning_rate: self.learning_rate,
+                integral: self.integral.unwrap_or(IntegralEstimator::BsdfSampled),
+            },
+            initial_q: self.initial_q.unwrap_or(defaults.initial_q),
+            uniform_mix: self.uniform_mix.unwrap_or(defaults.uniform_mix),
+            max_normal_angle_deg: self.max_normal_angle.unwrap_or(defaults.max_normal_angle_deg),
+            sampling_exponent: self.sampling_exponent.unwrap_or(defaults.sampling_exponent),
+            cosine_product: self.cosine_product.unwrap_or(self.device == Device::Cpu),
+            ..defaults
+        };
+        settings.validate().map_err(|e| e.to_string())?;
+        Ok(settings)
+    }
+
+    pub(super) fn integrator(&self, method: Method, plan: &GuidePlan) -> IntegratorSettings {
+        let guide_depth = match (self.guide_depth, self.device) {
+            (Some(depth), _) => depth,
+            (None, Device::Gpu) => u32::MAX,
+            (None, _) => 1,
+        };
+        IntegratorSettings {
+            method,
+            max_depth: self.max_depth.max(1),
+            rr_depth: self.rr_depth,
+            guide_probability: self.p_guide(),
+            guide_depth,
+            focal_probability: self.p_focal(),
+            focal_learning_share: self.focal_learn,
+            learned_guide_share: self.guide_share() == GuideShare::Learned,
+            density_weighted_learning: true,
+            nee_weighs_guide: false,
+            learn: true,
+            light_selection: plan.light_selection,
+            environment_sampling: plan.environment_sampling,
+        }
+    }
+
+    /// The directional guide's settings if `method` guides and `choice` is not `none`
+    /// (the plan may still leave it out).
+    pub(super) fn directional_guide(
+        &self,
+        method: Method,
+        choice: GuideChoice,
+    ) -> Result<Option<DirectionalGuideSettings>, String> {
+        match choice.structure() {
+            Some(structure) if method.uses_guide() => self.guide_settings(structure).map(Some),
+            _ => Ok(None),
+        }
+    }
+
+    /// What to build for light selection under `method`.
+    pub(super) fn light_request(&self, method: Method) -> Result<LightRequest, String> {
+        if !(self.light_guide_mib.is_finite() && self.light_guide_mib > 0.0) {
+            return Err(format!("--light-guide-mib {} must be positive", self.light_guide_mib));
+        }
+        if !(self.nee_gate.is_finite() && self.nee_gate >= 0.0) {
+            return Err(format!("--nee-gate {} must be finite and at least 0", self.nee_gate));
+        }
+        if !(self.nee_gate_floor > 0.0 && self.nee_gate_floor <= 1.0) {
+            return Err(format!("--nee-gate-floor {} must be in (0, 1]", self.nee_gate_floor));
+        }
+        let budget_bytes = (self.light_guide_mib * (1 << 20) as f64) as usize;
+        // The gate learns, so unguided methods (the baselines) and the GPU tracer (which
+        // has no light guide) shoot every shadow ray.
+        let gated = method.uses_guide() && self.device == Device::Cpu;
+        let settings = LightGuideSettings { budget_bytes, rule: self.light_rule, ..Default::default() };
+        settings.validate().map_err(|e| e.to_string())?;
+        let gate = (gated && self.nee_gate > 0.0).then_some(NextEventGateSettings {
+            scale: self.nee_gate,
+            floor: self.nee_gate_floor,
+            ..Default::default()
+        });
+        if !(self.env_guide_mib.is_finite() && self.env_guide_mib > 0.0) {
+            return Err(format!("--env-guide-mib {} must be positive", self.env_guide_mib));
+        }
+        let environment_settings = EnvTileGuideSettings {
+            budget_bytes: (self.env_guide_mib * (1 << 20) as f64) as usize,
+            tiles: self.env_tiles,
+            power_mix: self.env_power_mix,
+            ..Default::default()
+        };
+        environment_settings.validate().map_err(|e| format!("environment guide: {e}"))?;
+        // Like the gate, the parts are learned: baselines and the GPU use whole triangles.
+        let split = if gated { self.light_split.0 } else { Some(1) };
+        Ok(LightRequest {
+            split,
+            gate,
+            selection: self.light_selection.0,
+            settings,
+            environment: self.env_sampling.0,
+            environment_settings,
+            next_event_estimation: method.uses_nee(),
+        })
+    }
+}
