@@ -208,3 +208,32 @@ pub(super) fn expand_guides(methods: &[ComparedMethod], choices: &[GuideChoice])
     }
     runs
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_compared_method_names_its_device_selection_environment_and_guide() {
+        let m = parse_compared_method("gpu:nee:uniform+tiles@tree").unwrap();
+        assert_eq!((m.device, m.method), (Device::Gpu, Method::Nee));
+        assert_eq!(m.selection, Some(LightSelection::Uniform));
+        assert_eq!(m.environment, Some(EnvironmentSampling::Tiles));
+        assert_eq!(m.guide, Some(GuideStructure::Tree));
+        let plain = parse_compared_method("guided-nee").unwrap();
+        assert_eq!((plain.device, plain.method, plain.guide), (Device::Cpu, Method::GuidedNee, None));
+        for bad in ["nee:sometimes", "guided@octopus", "nee+fog", "warp", "gpu:"] {
+            assert!(parse_compared_method(bad).is_err(), "{bad} was accepted");
+        }
+    }
+
+    #[test]
+    fn guided_methods_run_once_per_listed_guide_and_unguided_ones_once() {
+        let methods = ["nee", "guided-nee", "guided@volume"].map(|m| parse_compared_method(m).unwrap());
+        let choices = [GuideChoice::Auto, GuideChoice::Structure(GuideStructure::Tree), GuideChoice::Off];
+        let names: Vec<String> = expand_guides(&methods, &choices).into_iter().map(|run| run.name).collect();
+        assert_eq!(names, ["nee", "guided-nee@hemisphere", "guided-nee@tree", "guided-nee@none", "guided@volume"]);
+        let one: Vec<String> = expand_guides(&methods[1..2], &choices[1..2]).into_iter().map(|run| run.name).collect();
+        assert_eq!(one, ["guided-nee"], "a single guide is not named");
+    }
+}

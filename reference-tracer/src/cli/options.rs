@@ -389,3 +389,26 @@ pub(super) fn parse_mapping(s: &str) -> Result<HemisphereMapping, String> {
         _ => Err(format!("unknown mapping `{s}` (cylindrical, concentric)")),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn resolutions_are_two_sides_within_the_largest_image() {
+        assert_eq!(parse_resolution("320x180"), Ok([320, 180]));
+        let limit = crate::scene::MAX_IMAGE_SIDE;
+        for bad in ["0x10", "10x0", "10", "x10", "tenxten", "-1x5"] {
+            assert!(parse_resolution(bad).is_err(), "{bad} was accepted");
+        }
+        assert!(parse_resolution(&format!("{}x1", limit + 1)).unwrap_err().contains(&limit.to_string()));
+    }
+
+    #[test]
+    fn guide_choices_name_a_structure_auto_or_none() {
+        assert_eq!(parse_guide_choice("auto").unwrap().structure(), Some(GuideStructure::Hemisphere));
+        assert_eq!(parse_guide_choice("none"), Ok(GuideChoice::Off));
+        assert_eq!(parse_guide_choice("tree"), Ok(GuideChoice::Structure(GuideStructure::Tree)));
+        assert!(parse_guide_choice("octopus").is_err());
+    }
+}
