@@ -1,0 +1,204 @@
+//! Next-event estimation: picking a light or the environment, the light sample and its
+//! MIS weight against scattering, the densities a scattered hit is weighed by, and what
+//! the light samples teach the light, environment and gate learners.
+
+use glam::Vec3;
+use guiding_core::environment::{EnvCell, EnvSample};
+use guiding_core::{DirectionalDistribution, GateCell, Guide, Hit, Intersector, LightCell, Pcg32, Ray};
+
+use super::counters::{PathCounters, GATE_PATH_STRIDE};
+use super::method::LightSelection;
+use super::tracer::{nee_partner_pdf, GuideClock, NeeCells, PathTracer};
+use crate::environment::Environment;
+use crate::material::{Material, ShadingFrame};
+use crate::sampling::power_heuristic;
+
+impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
+    /// Density with which next-event estimation produces direction `wi` towards an
+    /// emitter hit at `point` (by `hit`), seen from `from`.
+    /// `cell` is the light guide's cell of `from`.
+    pub(super) fn light_pdf(&self, hit: &Hit, from: Vec3, cell: Option<LightCell>, point: Vec3, normal: Vec3) -> f32 {
+        let Some(light) = self.scene.lights.light_at(hit.primitive, hit.barycentrics) else { return 0.0 };
+        (1.0 - self.environment_choice)
+            * self.selection_probability(cell, light)
+            * self.scene.lights.point_pdf(light, from, point, normal)
+    }
+
+    /// Density per steradian with which next-event estimation (after choosing the
+    /// environment) draws direction `wi` from `from`.
+    pub(super) fn environment_pdf(&self, environment: &Environment, from: Vec3, wi: Vec3) -> f32 {
+        match self.environment_guide {
+            Some(guide) => guide.cell(from).map_or(0.0, |cell| guide.distribution(cell).pdf(wi)),
+            None => environment.pdf(wi),
+        }
+    }
+
+    /// Picks an area light for next-event estimation at a point in the light guide's
+    /// `cell`: its index and probability.
+    pub(super) fn select_light(&self, cell: Option<LightCell>, u: f32) -> Option<(u32, f32)> {
+        let lights = &self.scene.lights;
+        if lights.is_empty() {
+            return None;
+        }
+        match (self.settings.light_selection, self.light_guide) {
+            (LightSelection::Uniform, _) => {
+                let count = lights.len() as u32;
+                Some((((u * count as f32) as u32).min(count - 1), 1.0 / count as f32))
+            }
+            (LightSelection::Learned, Some(guide)) => {
+                let choice = guide.select(cell?, u);
+                Some((choice.light, choice.probability))
+            }
+            _ => Some(lights.select_by_power(u)),
+        }
+    }
+
+    /// The probability [`select_light`](Self::select_light) gives `light` in `cell`.
+    pub(super) fn selection_probability(&self, cell: Option<LightCell>, light: u32) -> f32 {
+        match (self.settings.light_selection, self.light_guide) {
+            (LightSelection::Uniform, _) => 1.0 / self.scene.lights.len() as f32,
+            (LightSelection::Learned, Some(guide)) => cell.map_or(0.0, |c| guide.probability(c, light)),
+            _ => self.scene.lights.power_probability(light),
+        }
+    }
+
+    /// One light sample (area light or environment), MIS-weighted against scattering.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn direct_light(
+        &self,
+        material: &Material,
+        shading: &ShadingFrame,
+        (point, cells): (Vec3, NeeCells),
+        geometric_normal: Vec3,
+        wo: Vec3,
+        (distribution, guide_share, focal_share): (Option<&G::Distribution<'_>>, f32, f32),
+        rng: &mut Pcg32,
+        clock: &mut GuideClock,
+        counters: &mut PathCounters,
+    ) -> Vec3 {
+        let (u_choice, u_select, u) = (rng.next_f32(), rng.next_f32(), rng.next_vec2());
+        // The gate may leave this vertex's light to the scattered direction; the number is
+        // drawn only where it can, so ungated paths keep their random streams.
+        let gate = self.next_event_probability(cells.gate);
+        if gate < 1.0 && rng.next_f32() >= gate {
+            return Vec3::ZERO;
+        }
+        // The light chosen and its point pdf (per steradian, before selection), for learning.
+        let mut chosen: Option<(u32, f32)> = None;
+        // The environment guide's cell and lobe, for learning.
+        let mut tile: Option<(EnvCell, EnvSample)> = None;
+        let (wi, emitted, light_pdf, distance) = if u_choice < self.environment_choice {
+            let Some(environment) = &self.scene.environment else { return Vec3::ZERO };
+            match self.environment_guide {
+                Some(guide) => {
+                    let Some(cell) = guide.cell(point) else { return Vec3::ZERO };
+                    let s = clock.time(|| guide.distribution(cell).sample_lobe(u_select, u));
+                    tile = Some((cell, s));
+                    (
+                        s.direction,
+                        environment.radiance(s.direction),
+                        gate * self.environment_choice * s.pdf,
+                        f32::INFINITY,
+                    )
+                }
+                None => {
+                    let Some(s) = environment.sample(u_select, u) else { return Vec3::ZERO };
+                    (s.wi, s.radiance, gate * self.environment_choice * s.pdf, f32::INFINITY)
+                }
+            }
+        } else {
+            let Some((light, probability)) = self.select_light(cells.light, u_select) else { return Vec3::ZERO };
+            let Some(s) = self.scene.lights.sample_point(light, point, u) else {
+                self.learn_light(cells, light, 0.0, false, counters.paths);
+                return Vec3::ZERO;
+            };
+            chosen = Some((light, s.pdf));
+            (s.wi, s.radiance, gate * (1.0 - self.environment_choice) * probability * s.pdf, s.distance)
+        };
+        if !(light_pdf.is_finite() && light_pdf > 0.0) || emitted == Vec3::ZERO {
+            if let Some((cell, sample)) = tile {
+                self.learn_environment(cell, &sample, Vec3::ZERO);
+            }
+            return Vec3::ZERO;
+        }
+        let f = material.eval(shading, wo, wi);
+        if f == Vec3::ZERO {
+            if let Some((light, _)) = chosen {
+                self.learn_light(cells, light, 0.0, false, counters.paths);
+            }
+            if let Some((cell, sample)) = tile {
+                self.learn_environment(cell, &sample, Vec3::ZERO);
+            }
+            return Vec3::ZERO;
+        }
+        let origin = self.spawn(point, geometric_normal, wi);
+        let t_max = if distance.is_finite() {
+            // Stop short of the light by the spawn offset at both ends, so neither the
+            // surface left nor the emitter itself (rounded far from the origin) occludes.
+            let target = point + wi * distance;
+            let margin = self.epsilon_at(point) + self.epsilon_at(target);
+            (distance - margin).max(0.0) * (1.0 - 1e-5)
+        } else {
+            f32::INFINITY
+        };
+        counters.rays += 1;
+        let transmittance = self.transmittance(Ray::segment(origin, wi, 0.0, t_max), counters);
+        let occluded = transmittance <= 0.0;
+        if let Some((light, point_pdf)) = chosen {
+            // Eq. (3)'s ‖C‖∞: the unshadowed contribution of the whole light.
+            self.learn_light(cells, light, (f * emitted / point_pdf).max_element(), !occluded, counters.paths);
+        }
+        if let Some((cell, sample)) = tile {
+            self.learn_environment(cell, &sample, f * transmittance);
+        }
+        if occluded {
+            return Vec3::ZERO;
+        }
+        let scatter_pdf = if self.settings.nee_weighs_guide {
+            let guide = distribution.map(|distribution| (clock.time(|| distribution.pdf(wi)), guide_share));
+            self.scatter_pdf(material, shading, wo, wi, guide, focal_share)
+        } else {
+            let guide_share = if distribution.is_some() { guide_share } else { 0.0 };
+            nee_partner_pdf(material.pdf(shading, wo, wi), guide_share, focal_share)
+        };
+        let weight = power_heuristic(light_pdf, scatter_pdf);
+        f * emitted * (weight * transmittance / light_pdf)
+    }
+
+    /// The probability that next-event estimation runs at `point`: the light guide's
+    /// gate where it has one, else 1. Emission found by a scattered direction is weighed
+    /// by MIS against this times the light pdf, so a vertex whose shadow ray the gate
+    /// skipped leaves its light to that direction, unbiased.
+    pub(super) fn next_event_probability(&self, cell: Option<GateCell>) -> f32 {
+        match (self.gate, cell) {
+            (Some(gate), Some(cell)) => gate.probability(cell),
+            _ => 1.0,
+        }
+    }
+
+    /// Teaches one shadow ray from a vertex in `cells` to `light`: the light guide's V
+    /// where lights are selected as learned, and (in learning passes, from one path in
+    /// [`GATE_PATH_STRIDE`]) the gate's count.
+    pub(super) fn learn_light(&self, cells: NeeCells, light: u32, contribution: f32, unoccluded: bool, path: u64) {
+        if let (Some(guide), Some(cell)) = (self.light_guide, cells.light) {
+            guide.update(cell, light, contribution, unoccluded);
+        }
+        if let (Some(gate), Some(cell)) = (self.gate, cells.gate) {
+            if self.settings.learn && path % GATE_PATH_STRIDE == 0 {
+                gate.record(cell, unoccluded);
+            }
+        }
+    }
+
+    /// Teaches the environment guide the shadow ray of `sample` from `cell`: `f` is the
+    /// BSDF × cos θ there (zero when occluded); the sample's lobe learns ‖f·L‖∞ with L the
+    /// radiance of its own light (the sun's for the sun lobe, the sky's for a tile).
+    pub(super) fn learn_environment(&self, cell: EnvCell, sample: &EnvSample, f: Vec3) {
+        let (Some(guide), Some(environment)) = (self.environment_guide, &self.scene.environment) else { return };
+        let radiance = match &environment.sun {
+            Some(sun) if Some(sample.lobe) == guide.sun_lobe() => sun.radiance(sample.direction),
+            _ => environment.sky.radiance(sample.direction),
+        };
+        guide.update(cell, sample, (f * radiance).max_element());
+    }
+}

@@ -1,0 +1,110 @@
+//! The estimators, and how next-event estimation picks lights and samples the environment.
+
+/// Which estimator to run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Method {
+    /// Unidirectional path tracing with BSDF sampling only.
+    Pt,
+    /// BSDF sampling plus next-event estimation, combined by the power heuristic.
+    Nee,
+    /// BSDF and guide sampling (one-sample MIS), learning online.
+    Guided,
+    /// Guided plus next-event estimation.
+    GuidedNee,
+}
+
+impl Method {
+    /// Every method, in the order the command line lists them.
+    pub const ALL: [Method; 4] = [Method::Pt, Method::Nee, Method::Guided, Method::GuidedNee];
+
+    /// The command-line name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Pt => "pt",
+            Method::Nee => "nee",
+            Method::Guided => "guided",
+            Method::GuidedNee => "guided-nee",
+        }
+    }
+
+    /// Parses a command-line name.
+    pub fn from_name(name: &str) -> Option<Method> {
+        Method::ALL.into_iter().find(|m| m.name() == name)
+    }
+
+    /// Whether light sources are sampled directly.
+    pub fn uses_nee(self) -> bool {
+        matches!(self, Method::Nee | Method::GuidedNee)
+    }
+
+    /// Whether directions are drawn from a learned guide.
+    pub fn uses_guide(self) -> bool {
+        matches!(self, Method::Guided | Method::GuidedNee)
+    }
+}
+
+/// How next-event estimation samples the environment (sky and sun).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum EnvironmentSampling {
+    /// In proportion to luminance everywhere (the sun by its share of the power).
+    Luminance,
+    /// From an [`EnvTileGuide`](guiding_core::EnvTileGuide): per grid cell, tiles of the map (and the sun) by the
+    /// light they were seen to bring there, with power and uniform defensive shares;
+    /// learns during every pass.
+    Tiles,
+}
+
+impl EnvironmentSampling {
+    /// Every choice, in the order the command line lists them.
+    pub const ALL: [EnvironmentSampling; 2] = [EnvironmentSampling::Luminance, EnvironmentSampling::Tiles];
+
+    /// The command-line name.
+    pub fn name(self) -> &'static str {
+        match self {
+            EnvironmentSampling::Luminance => "luminance",
+            EnvironmentSampling::Tiles => "tiles",
+        }
+    }
+
+    /// Parses a command-line name.
+    pub fn from_name(name: &str) -> Result<Self, String> {
+        Self::ALL
+            .into_iter()
+            .find(|s| s.name() == name)
+            .ok_or_else(|| format!("unknown environment sampling `{name}` (luminance, tiles)"))
+    }
+}
+
+/// How next-event estimation picks one of the scene's area lights (emissive triangles).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LightSelection {
+    /// Every light equally likely.
+    Uniform,
+    /// In proportion to power (luminance × area).
+    Power,
+    /// From a [`LightGuide`](guiding_core::LightGuide) learned from shadow rays (Eq. 3), with power and uniform
+    /// defensive shares; learns during every pass.
+    Learned,
+}
+
+impl LightSelection {
+    /// Every choice, in the order the command line lists them.
+    pub const ALL: [LightSelection; 3] = [LightSelection::Uniform, LightSelection::Power, LightSelection::Learned];
+
+    /// The command-line name.
+    pub fn name(self) -> &'static str {
+        match self {
+            LightSelection::Uniform => "uniform",
+            LightSelection::Power => "power",
+            LightSelection::Learned => "learned",
+        }
+    }
+
+    /// Parses a command-line name.
+    pub fn from_name(name: &str) -> Result<Self, String> {
+        Self::ALL
+            .into_iter()
+            .find(|s| s.name() == name)
+            .ok_or_else(|| format!("unknown light selection `{name}` (uniform, power, learned)"))
+    }
+}

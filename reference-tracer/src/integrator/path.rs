@@ -1,0 +1,353 @@
+//! One path: scattering by the BSDF, the directional guide and the focal guide in one
+//! mixture, Russian roulette, and what the finished path teaches every learner.
+
+use glam::Vec3;
+use guiding_core::{
+    DirectionalDistribution, FocalArrival, FocalRecord, Guide, Intersector, Lambertian, PathRecorder, Pcg32, Ray,
+    StrategyArrival,
+};
+
+use super::counters::{PathCounters, TIMED_PATH_STRIDE};
+use super::tracer::{nee_partner_pdf, GuideClock, NeeCells, PathScratch, PathTracer, ScalarBsdf, VertexStrategies};
+use crate::color::luminance;
+use crate::material::{Material, ShadingFrame, Surface};
+use crate::sampling::power_heuristic;
+
+impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
+    /// Radiance arriving along `ray` (one sample), adding its counters to `counters`.
+    pub fn radiance(
+        &self,
+        mut ray: Ray,
+        rng: &mut Pcg32,
+        scratch: &mut PathScratch<G::Region>,
+        counters: &mut PathCounters,
+    ) -> Vec3 {
+        let settings = &self.settings;
+        let learning = settings.learn && (self.guide.is_some() || self.focal.is_some());
+        scratch.path.clear();
+        scratch.clock =
+            GuideClock { enabled: self.guide.is_some() && counters.paths % TIMED_PATH_STRIDE == 0, nanos: 0 };
+        let clock = &mut scratch.clock;
+        let mut radiance = Vec3::ZERO;
+        let mut throughput = Vec3::ONE;
+        // The throughput with every vertex that could aim at the focal boxes counted as
+        // if its direction came from the BSDF alone: Russian roulette survives by it.
+        // The focal guide gives the paths it sends through a gap a small weight (its
+        // pdf is large); surviving by that weight would end nearly all of them at the
+        // next vertex and give the few left the weight back, undoing what aiming gained.
+        // Without focal guiding it is the throughput itself.
+        let mut roulette_throughput = Vec3::ONE;
+        // The previous vertex: its position, the pdf of the direction it sampled, whether
+        // that direction came from a delta lobe, and its light guide cell.
+        let mut previous: Option<(Vec3, f32, bool, NeeCells)> = None;
+        counters.paths += 1;
+        for depth in 0..settings.max_depth {
+            counters.rays += 1;
+            let next = self.next_surface(ray, rng, counters);
+            if let Some((hit, _)) = &next {
+                scratch.path.reached(hit.t);
+            }
+            let Some((hit, material)) = next else {
+                if let Some(environment) = &self.scene.environment {
+                    let emitted = environment.radiance(ray.direction);
+                    let weight = match previous {
+                        Some((from, pdf, false, cells)) if settings.method.uses_nee() => power_heuristic(
+                            pdf,
+                            self.next_event_probability(cells.gate)
+                                * self.environment_choice
+                                * self.environment_pdf(environment, from, ray.direction),
+                        ),
+                        _ => 1.0,
+                    };
+                    radiance += throughput * emitted * weight;
+                    scratch.path.arrive(weight * luminance(emitted));
+                }
+                break;
+            };
+            counters.vertices += 1;
+            let material = &material;
+            let triangle = &self.scene.triangles[hit.primitive as usize];
+            let point = triangle.point(hit.barycentrics);
+            let geometric_normal = self.scene.normals[hit.primitive as usize];
+            let wo = -ray.direction;
+
+            // Emission from the front face.
+            if material.is_emissive() && geometric_normal.dot(wo) > 0.0 {
+                let weight = match previous {
+                    Some((from, pdf, false, cells)) if settings.method.uses_nee() => power_heuristic(
+                        pdf,
+                        self.next_event_probability(cells.gate)
+                            * self.light_pdf(&hit, from, cells.light, point, geometric_normal),
+                    ),
+                    _ => 1.0,
+                };
+                radiance += throughput * material.emission * weight;
+                scratch.path.arrive(weight * luminance(material.emission));
+            }
+            let shading_normal = self.scene.shading_normal(hit.primitive, hit.barycentrics);
+            let shading = material.shading_frame(geometric_normal, shading_normal, wo);
+            let normal = shading.frame.normal;
+            let delta = material.is_delta();
+            // The guide's share here: fixed, or learned per region (where it learned 0 the
+            // guide is not even located, except to keep learning).
+            let guides_here = self.guide.is_some() && !delta && depth < settings.guide_depth;
+            let guide_share = match self.guide_shares {
+                _ if !guides_here => 0.0,
+                // Frozen, and no region gives it a share: no lookup at all.
+                Some(shares) if !learning && !shares.any() => 0.0,
+                Some(shares) => shares.share(point).min(settings.guide_probability),
+                None => settings.guide_probability,
+            };
+            let region = match self.guide {
+                Some(guide) if guides_here && (guide_share > 0.0 || learning) => {
+                    clock.time(|| guide.locate(point, normal))
+                }
+                _ => None,
+            };
+            if learning && !delta && !self.carries_path {
+                if let (false, Some(region), Some(guide)) = (scratch.path.is_empty(), region, self.guide) {
+                    let (u, u_lobe) = (rng.next_vec2(), rng.next_f32());
+                    let estimate = clock.time(|| match material.surface {
+                        Surface::Diffuse { albedo } => {
+                            guide.estimate_integral(region, wo, &Lambertian { normal, albedo: luminance(albedo) }, u)
+                        }
+                        _ => {
+                            let bsdf = ScalarBsdf { material, shading: &shading, u_lobe };
+                            guide.estimate_integral(region, wo, &bsdf, u)
+                        }
+                    });
+                    scratch.path.estimate(estimate);
+                }
+            }
+            if depth + 1 >= settings.max_depth {
+                break;
+            }
+
+            // The region's distribution, located once and used for every sample and pdf.
+            let distribution = match (self.guide, region) {
+                (Some(guide), Some(region)) => Some(clock.time(|| guide.distribution(region))),
+                _ => None,
+            };
+            // The focal guide's share of the scattering here (0 where it has no boxes, and
+            // left out altogether in frozen passes where no region aims at them).
+            let focal = self.focal.filter(|f| !delta && if learning { !f.boxes().is_empty() } else { f.aims() });
+            let focal_share = focal.map_or(0.0, |f| f.selection_probability(point).min(settings.focal_probability));
+            // Learning measures the boxes' share from every direction, sampled by them or not.
+            let focal = focal.filter(|_| focal_share > 0.0 || learning);
+            // Next-event estimation, and the cells it and the MIS weight of emission found
+            // from here share.
+            let nee_cells = if settings.method.uses_nee() && !delta {
+                NeeCells {
+                    light: self.light_guide.and_then(|guide| guide.cell(point)),
+                    gate: self.gate.and_then(|gate| gate.cell(point)),
+                }
+            } else {
+                NeeCells::default()
+            };
+            if settings.method.uses_nee() && !delta {
+                let direct = self.direct_light(
+                    material,
+                    &shading,
+                    (point, nee_cells),
+                    geometric_normal,
+                    wo,
+                    (distribution.as_ref(), guide_share, focal_share),
+                    rng,
+                    clock,
+                    counters,
+                );
+                radiance += throughput * direct;
+                scratch.path.arrive(luminance(direct));
+            }
+
+            // Russian roulette, decided before the direction is drawn: a survival that
+            // depended on the direction (through its fs·cos/pdf) would make the traced
+            // directions, which are all the guide learns from, follow p·survival instead
+            // of the p they are recorded with.
+            let mut survival = 1.0;
+            if depth + 1 >= settings.rr_depth {
+                survival = roulette_throughput.max_element().min(0.95);
+                if survival <= 0.0 || rng.next_f32() >= survival {
+                    break;
+                }
+                throughput /= survival;
+                roulette_throughput /= survival;
+            }
+
+            // Choose the next direction: the guide with probability p_guide where a region
+            // exists, the BSDF otherwise; weight by the mixture pdf.
+            let (u_choice, u_lobe, u) = (rng.next_f32(), rng.next_f32(), rng.next_vec2());
+            // `mis_pdf` is what MIS with next-event estimation weighs by: the mixture
+            // without the focal term, or the BSDF's share alone (`nee_partner_pdf`); any
+            // function both strategies share keeps the weights summing to one, and these
+            // spare a focal (and a guide) pdf per light sample.
+            let (mut focal_arrival, mut focal_pdf_pending, mut guide_arrival) = (None, false, None);
+            let (wi, factor, bsdf_factor, pdf, mis_pdf, sampled_delta) = if delta {
+                let Some(s) = material.sample(&shading, wo, u, u_lobe) else { break };
+                (s.wi, s.weight, s.weight, s.pdf, s.pdf, true)
+            } else {
+                let guide_probability = if distribution.is_some() { guide_share } else { 0.0 };
+                // A direction drawn from a guide comes with that guide's pdf: not evaluated twice.
+                let (wi, f, guide_pdf, focal_pdf) = match (&distribution, focal) {
+                    (_, Some(focal)) if u_choice < focal_share && focal_share > 0.0 => {
+                        let u_point = Vec3::new(u_choice / focal_share, u.x, u.y);
+                        let Some(s) = clock.time(|| focal.sample(point, u_lobe, u_point)) else { break };
+                        (s.direction, material.eval(&shading, wo, s.direction), None, Some(s.pdf))
+                    }
+                    (Some(distribution), _) if u_choice < focal_share + guide_probability => {
+                        let s = clock.time(|| distribution.sample(u));
+                        (s.direction, material.eval(&shading, wo, s.direction), Some(s.pdf), None)
+                    }
+                    _ => {
+                        let Some(s) = material.sample(&shading, wo, u, u_lobe) else { break };
+                        (s.wi, s.weight * s.pdf, None, None)
+                    }
+                };
+                if f == Vec3::ZERO {
+                    break;
+                }
+                let guide_pdf = match (&distribution, guide_pdf) {
+                    (Some(distribution), None) => Some(clock.time(|| distribution.pdf(wi))),
+                    (_, known) => known,
+                };
+                let focal_pdf = match (focal, focal_pdf) {
+                    (Some(focal), None) if focal_share > 0.0 => Some(clock.time(|| focal.pdf(point, wi))),
+                    (_, known) => known,
+                };
+                focal_pdf_pending = focal.is_some() && focal_pdf.is_none();
+                let focal_pdf = focal_pdf.unwrap_or(0.0);
+                let bsdf_pdf = material.pdf(&shading, wo, wi);
+                let mixture = self.mix_pdf(bsdf_pdf, guide_pdf.map(|g| (g, guide_share)), focal_share);
+                let pdf = mixture + focal_share * focal_pdf;
+                let mis_pdf = if settings.nee_weighs_guide {
+                    mixture
+                } else {
+                    nee_partner_pdf(bsdf_pdf, guide_probability, focal_share)
+                };
+                if !(pdf.is_finite() && pdf > 0.0) {
+                    break;
+                }
+                if let (Some(_), Some(strategy_pdf)) = (self.guide_shares, guide_pdf) {
+                    // As for the focal arrival, the integrand waits for what arrives.
+                    let integrand = luminance(f);
+                    let selection = guide_share;
+                    guide_arrival = Some(StrategyArrival { point, integrand, pdf, strategy_pdf, bsdf_pdf, selection });
+                }
+                if focal.is_some() {
+                    // The integrand is filled in once the path knows what arrived.
+                    let integrand = luminance(f);
+                    let selection = focal_share;
+                    focal_arrival = Some(FocalArrival { point, integrand, pdf, focal_pdf, bsdf_pdf, selection });
+                }
+                // Where the mixture cannot aim at the focal boxes the two factors are one:
+                // unguided and directionally guided paths survive as they always did (the
+                // BSDF-only rule was measured for focal guiding alone, and the GPU tracer,
+                // which has no focal guide, keeps the same rule).
+                let aims = focal_share > 0.0;
+                let bsdf_factor = if aims && bsdf_pdf > 0.0 { f / bsdf_pdf } else { f / pdf };
+                (wi, f / pdf, bsdf_factor, pdf, mis_pdf, false)
+            };
+            if !factor.is_finite() {
+                break;
+            }
+            throughput *= factor;
+            roulette_throughput *= bsdf_factor;
+            // The scalar factor this vertex applies to what arrives along `wi`: fs·cos/pdf
+            // and, past Russian roulette, 1/survival, exactly as the throughput has it.
+            let carried = luminance(factor) / survival;
+            // Only directions that are actually traced are learned from. A vertex without
+            // an estimate of its own (delta, or no region, or every vertex when the guide
+            // learns from the path's continuation) passes its target back to the previous
+            // one, scaled by its factor.
+            if learning {
+                if delta || region.is_none() || self.carries_path {
+                    scratch.path.carry(carried);
+                }
+                let strategies = VertexStrategies {
+                    // Drawn only for a focal guide: other guides' paths keep their numbers.
+                    u_record: if self.focal.is_some() { rng.next_f32() } else { 0.5 },
+                    focal_arrival,
+                    focal_pdf_pending,
+                    guide_arrival,
+                };
+                scratch.path.scattered(region, point, wi, pdf, luminance(throughput), strategies);
+            }
+            ray = Ray::new(self.spawn(point, geometric_normal, wi), wi);
+            previous = Some((point, mis_pdf, sampled_delta, nee_cells));
+        }
+        if radiance.max_element() > 0.0 {
+            counters.nonzero_paths += 1;
+        }
+        if learning {
+            // Drawn after the path, so the share leaves the path's own numbers alone.
+            let focal_learns = self.focal.is_some() && rng.next_f32() < settings.focal_learning_share;
+            let path = &scratch.path;
+            scratch.clock.time(|| self.learn_from_path(path, focal_learns));
+        }
+        if scratch.clock.enabled {
+            counters.timed_paths += 1;
+            counters.timed_guide_nanos += scratch.clock.nanos;
+        }
+        radiance
+    }
+
+    /// The pdf of scattering `wi` from `wo` without the focal term: the BSDF's share
+    /// (what `focal_share` and the guide leave it), plus the guide's density `guide_pdf`
+    /// of `wi` where a region exists.
+    pub(super) fn scatter_pdf(
+        &self,
+        material: &Material,
+        shading: &ShadingFrame,
+        wo: Vec3,
+        wi: Vec3,
+        guide: Option<(f32, f32)>,
+        focal_share: f32,
+    ) -> f32 {
+        self.mix_pdf(material.pdf(shading, wo, wi), guide, focal_share)
+    }
+
+    /// [`scatter_pdf`](Self::scatter_pdf) from the BSDF's pdf; `guide` is the guide's
+    /// density of the direction and its share here.
+    pub(super) fn mix_pdf(&self, bsdf_pdf: f32, guide: Option<(f32, f32)>, focal_share: f32) -> f32 {
+        match guide {
+            Some((guide_pdf, p)) => p * guide_pdf + (1.0 - p - focal_share) * bsdf_pdf,
+            None => (1.0 - focal_share) * bsdf_pdf,
+        }
+    }
+
+    /// Teaches the finished path to every learner: the directional guide its Eq. (1)
+    /// targets (from the recorder), the learned shares and the focal guide what arrived
+    /// along each direction. Rejected targets are counted by the guide itself (its
+    /// `stats()`).
+    pub(super) fn learn_from_path(&self, path: &PathRecorder<G::Region, VertexStrategies>, focal_learns: bool) {
+        if let Some(guide) = self.guide {
+            path.learn(guide, self.settings.density_weighted_learning);
+        }
+        let focal = self.focal.filter(|_| focal_learns);
+        if self.guide_shares.is_none() && focal.is_none() {
+            return;
+        }
+        for (vertex, target) in path.targets() {
+            let strategies = &vertex.extra;
+            if let (Some(shares), Some(arrival)) = (self.guide_shares, strategies.guide_arrival) {
+                shares.record(&StrategyArrival { integrand: arrival.integrand * target, ..arrival });
+            }
+            let Some(focal) = focal else { continue };
+            if let Some(arrival) = strategies.focal_arrival {
+                let integrand = arrival.integrand * target;
+                let focal_pdf = if strategies.focal_pdf_pending && integrand > 0.0 {
+                    focal.pdf(arrival.point, vertex.direction)
+                } else {
+                    arrival.focal_pdf
+                };
+                focal.record_arrival(&FocalArrival { integrand, focal_pdf, ..arrival });
+            }
+            let weight = vertex.throughput * target;
+            if weight > 0.0 {
+                let record =
+                    FocalRecord { origin: vertex.origin, direction: vertex.direction, length: vertex.length, weight };
+                focal.record(&record, strategies.u_record);
+            }
+        }
+    }
+}

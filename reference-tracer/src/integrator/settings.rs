@@ -1,0 +1,70 @@
+//! The settings of a path.
+
+use super::method::{EnvironmentSampling, LightSelection, Method};
+
+/// Settings of a path.
+#[derive(Clone, Copy, Debug)]
+pub struct IntegratorSettings {
+    /// The estimator.
+    pub method: Method,
+    /// Most scattering vertices per path.
+    pub max_depth: u32,
+    /// Russian roulette starts after this many vertices.
+    pub rr_depth: u32,
+    /// Probability of sampling the guide instead of the BSDF where a guide region exists.
+    pub guide_probability: f32,
+    /// Only the first this many vertices of a path use the guide (locate, sample, pdf);
+    /// deeper ones scatter by the BSDF alone and pass their targets back to the last
+    /// guided vertex, which still learns all it would.
+    pub guide_depth: u32,
+    /// Probability of aiming at the focal guide's boxes instead (where it has any), in
+    /// [0, 1 − guide_probability]; 0 leaves focal guiding out.
+    pub focal_probability: f32,
+    /// Share of paths, drawn at random, that the focal guide learns from, in (0, 1]: its
+    /// records (atomic adds into shared octree leaves and selection cells, and a focal
+    /// pdf per arrival) cost more than most vertices need, and a quarter of a pass's
+    /// paths still teach it plenty.
+    pub focal_learning_share: f32,
+    /// Whether the directional guide's share is learned per region (up to
+    /// `guide_probability`; where it learns 0 the guide is not even located) instead of
+    /// `guide_probability` everywhere.
+    pub learned_guide_share: bool,
+    /// Whether the directional guide learns each direction with the density it was drawn
+    /// with (`Guide::update_sampled`: the tables' entries then learn their mean over
+    /// their solid angle) or without (`Guide::update`). The GPU tracer's tables learn
+    /// without; the CPU renders checked against them turn this off.
+    pub density_weighted_learning: bool,
+    /// Whether MIS between next-event estimation and scattering weighs a direction by the
+    /// scattering mixture with the guide's density in it (the power heuristic of the
+    /// two strategies' actual densities, a guide pdf per light sample) or by the BSDF's
+    /// share of the mixture alone (weights that still sum to one with the light's, so
+    /// the image stays unbiased, and no guide lookup per light sample). The GPU tracer
+    /// weighs with the guide; the CPU renders checked against its tables do too.
+    pub nee_weighs_guide: bool,
+    /// Whether guided paths update the guide.
+    pub learn: bool,
+    /// How next-event estimation picks an area light.
+    pub light_selection: LightSelection,
+    /// How next-event estimation samples the environment.
+    pub environment_sampling: EnvironmentSampling,
+}
+
+impl Default for IntegratorSettings {
+    fn default() -> Self {
+        Self {
+            method: Method::Nee,
+            max_depth: 32,
+            rr_depth: 4,
+            guide_probability: 0.3,
+            guide_depth: u32::MAX,
+            focal_probability: 0.0,
+            focal_learning_share: 0.25,
+            learned_guide_share: false,
+            density_weighted_learning: true,
+            nee_weighs_guide: false,
+            learn: true,
+            light_selection: LightSelection::Power,
+            environment_sampling: EnvironmentSampling::Luminance,
+        }
+    }
+}

@@ -1,0 +1,267 @@
+//! The path tracer: what it holds (the scene, the intersector, the guide and every
+//! learner), how its rays leave surfaces and pass opacity masks, and the per-thread
+//! scratch space of its paths.
+
+use glam::{Vec2, Vec3};
+use guiding_core::{
+    EnvTileGuide, FocalArrival, FocalGuide, GateCell, Guide, Hit, IntegralEstimator, Intersector, LightCell,
+    LightGuide, NextEventGate, PathRecorder, Pcg32, Ray, SampledDirection, ScatteringFunction, StrategyArrival,
+    StrategyShares,
+};
+
+use super::counters::PathCounters;
+use super::method::{EnvironmentSampling, LightSelection};
+use super::settings::IntegratorSettings;
+use crate::color::luminance;
+use crate::material::{Material, ShadingFrame};
+use crate::scene::Scene;
+
+/// What the tracer keeps beside each recorded vertex for its own learners (the guide's
+/// targets themselves come from guiding-core's [`PathRecorder`]).
+///
+/// With next-event estimation, Q must not learn the light that next-event estimation
+/// already brings: a guide that also chases the lights starves the other directions,
+/// whose BSDF samples then carry mixture weights up to 1/(1-p_guide) at every bounce,
+/// and those compound into fireflies. So the tracer tells the recorder, as arriving, the
+/// next vertex's emission times the MIS weight it received as a BSDF/guide hit, plus the
+/// light the next vertex's own next-event sample reflects back (indirect light for this
+/// vertex), and as onward ∫ Q fs cos at the next vertex, whose Q was learned the same
+/// way. Without next-event estimation the weights are 1 and this is exactly Eq. (1).
+#[derive(Clone, Copy, Debug)]
+pub struct VertexStrategies {
+    /// A uniform number for the focal guide's stratified deposits (0.5 without one).
+    pub(super) u_record: f32,
+    /// How the direction was drawn, for the focal guide's choice of its share (`None` at
+    /// a delta vertex or without a focal guide).
+    pub(super) focal_arrival: Option<FocalArrival>,
+    /// Whether the arrival's focal pdf is left to learning: where the mixture did not aim
+    /// at the boxes, the pdf of `direction` under them matters only if light arrived.
+    pub(super) focal_pdf_pending: bool,
+    /// How the direction was drawn, for the directional guide's learned share (`None`
+    /// where it has none or no region here).
+    pub(super) guide_arrival: Option<StrategyArrival>,
+}
+
+/// Per-thread scratch space reused across paths (no allocation per path); `R` is the
+/// guide's region type.
+pub struct PathScratch<R> {
+    pub(super) path: PathRecorder<R, VertexStrategies>,
+    pub(super) clock: GuideClock,
+}
+
+impl<R> Default for PathScratch<R> {
+    fn default() -> Self {
+        Self { path: PathRecorder::default(), clock: GuideClock::default() }
+    }
+}
+
+/// Accumulates the time of guide calls on the paths chosen for timing.
+#[derive(Default)]
+pub(super) struct GuideClock {
+    pub(super) enabled: bool,
+    pub(super) nanos: u64,
+}
+
+impl GuideClock {
+    pub(super) fn time<T>(&mut self, call: impl FnOnce() -> T) -> T {
+        if !self.enabled {
+            return call();
+        }
+        let start = std::time::Instant::now();
+        let result = call();
+        self.nanos += start.elapsed().as_nanos() as u64;
+        result
+    }
+}
+
+/// A BSDF as the guide's integral estimate sees it: scalar fs·cos (luminance), and the
+/// material's own sampler (with `u_lobe` picking its lobe).
+pub(super) struct ScalarBsdf<'a> {
+    pub(super) material: &'a Material,
+    pub(super) shading: &'a ShadingFrame,
+    pub(super) u_lobe: f32,
+}
+
+impl ScatteringFunction for ScalarBsdf<'_> {
+    fn eval_cos(&self, wi: Vec3, wo: Vec3) -> f32 {
+        luminance(self.material.eval(self.shading, wo, wi))
+    }
+
+    fn sample_cos(&self, wo: Vec3, u: Vec2) -> Option<SampledDirection> {
+        let sample = self.material.sample(self.shading, wo, u, self.u_lobe)?;
+        Some(SampledDirection { wi: sample.wi, weight: luminance(sample.weight) })
+    }
+
+    fn can_sample(&self) -> bool {
+        true
+    }
+}
+
+/// Traces paths through a scene, guided (for the guided methods) by any [`Guide`].
+pub struct PathTracer<'a, I: Intersector, G: Guide> {
+    pub(super) scene: &'a Scene,
+    pub(super) intersector: &'a I,
+    pub(super) guide: Option<&'a G>,
+    /// The focal guide (guided methods with a focal probability above 0).
+    pub(super) focal: Option<&'a FocalGuide>,
+    /// The directional guide's learned share per region (`learned_guide_share`).
+    pub(super) guide_shares: Option<&'a StrategyShares>,
+    /// The learned light selection, when `settings.light_selection` is `Learned`.
+    pub(super) light_guide: Option<&'a LightGuide>,
+    /// The next-event gate (guided methods on the CPU).
+    pub(super) gate: Option<&'a NextEventGate>,
+    /// The learned environment sampling, when `settings.environment_sampling` is `Tiles`.
+    pub(super) environment_guide: Option<&'a EnvTileGuide>,
+    pub(super) settings: IntegratorSettings,
+    pub(super) ray_epsilon: f32,
+    pub(super) environment_choice: f32,
+    /// Whether some material has an opacity texture: rays then pass through it.
+    pub(super) masks: bool,
+    /// The guide learns from the path's own continuation (no integral estimate at the
+    /// next vertex: every vertex carries its successor's target back).
+    pub(super) carries_path: bool,
+}
+
+/// A vertex's cells in the light guide and the next-event gate: next-event estimation
+/// there, and the MIS weight of emission found from there, read both.
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct NeeCells {
+    pub(super) light: Option<LightCell>,
+    pub(super) gate: Option<GateCell>,
+}
+
+/// The density MIS with next-event estimation weighs a scattered direction by (unless
+/// `nee_weighs_guide`): the BSDF's share of the scattering mixture, the guide's and the
+/// focal guide's terms left out. Any density both strategies share keeps their weights
+/// summing to one; this one needs no guide lookup per light sample. `guide_share` is 0
+/// where the vertex has no guide region.
+pub(super) fn nee_partner_pdf(bsdf_pdf: f32, guide_share: f32, focal_share: f32) -> f32 {
+    (1.0 - guide_share - focal_share).max(0.0) * bsdf_pdf
+}
+
+/// Most masked surfaces a ray passes through before it counts as blocked.
+pub(super) const MAX_MASK_CROSSINGS: u32 = 64;
+
+impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
+    /// A tracer; `guide` is used by the guided methods only, `light_guide` when lights
+    /// are selected as learned, `environment_guide` when the environment is sampled by
+    /// tiles.
+    pub fn new(
+        scene: &'a Scene,
+        intersector: &'a I,
+        guide: Option<&'a G>,
+        focal: Option<&'a FocalGuide>,
+        light_guide: Option<&'a LightGuide>,
+        environment_guide: Option<&'a EnvTileGuide>,
+        settings: IntegratorSettings,
+    ) -> Self {
+        let (low, high) = scene.bounds();
+        let ray_epsilon = 1e-5 * (high - low).length().max(f32::MIN_POSITIVE);
+        let environment_choice = match (scene.environment.is_some(), scene.lights.is_empty()) {
+            (true, true) => 1.0,
+            (true, false) => 0.5,
+            (false, _) => 0.0,
+        };
+        let guide = if settings.method.uses_guide() { guide } else { None };
+        let focal = focal.filter(|_| settings.method.uses_guide() && settings.focal_probability > 0.0);
+        let light_guide = light_guide.filter(|_| settings.light_selection == LightSelection::Learned);
+        let environment_guide =
+            environment_guide.filter(|_| settings.environment_sampling == EnvironmentSampling::Tiles);
+        let masks = scene.has_masks();
+        let carries_path = guide.is_some_and(|g| g.update_rule().integral == IntegralEstimator::PathContinuation);
+        Self {
+            scene,
+            intersector,
+            guide,
+            focal,
+            guide_shares: None,
+            light_guide,
+            gate: None,
+            environment_guide,
+            settings,
+            ray_epsilon,
+            environment_choice,
+            masks,
+            carries_path,
+        }
+    }
+
+    /// The tracer with a next-event gate (used where the method estimates next-event
+    /// light).
+    pub fn with_gate(mut self, gate: Option<&'a NextEventGate>) -> Self {
+        self.gate = gate.filter(|_| self.settings.method.uses_nee());
+        self
+    }
+
+    /// The tracer with the directional guide's learned shares (used where
+    /// `learned_guide_share` is set and a guide is there).
+    pub fn with_guide_shares(mut self, shares: Option<&'a StrategyShares>) -> Self {
+        self.guide_shares = shares.filter(|_| self.guide.is_some() && self.settings.learned_guide_share);
+        self
+    }
+
+    /// Offset of a ray leaving `point` on the side of `normal` that `direction` points to:
+    /// relative to the scene size and to the magnitude of the coordinates.
+    pub(super) fn spawn(&self, point: Vec3, normal: Vec3, direction: Vec3) -> Vec3 {
+        let side = if normal.dot(direction) >= 0.0 { 1.0 } else { -1.0 };
+        point + normal * (side * self.epsilon_at(point))
+    }
+
+    /// How far from a surface at `point` a ray must start or stop not to hit it again:
+    /// the scene-relative epsilon plus a few f32 steps of the coordinates there.
+    pub(super) fn epsilon_at(&self, point: Vec3) -> f32 {
+        self.ray_epsilon + 1e-6 * point.abs().max_element()
+    }
+
+    /// The closest surface along `ray` that the ray stops at, with its textured material:
+    /// a masked surface lets the ray pass with probability 1 − opacity (its hit is
+    /// skipped and tracing goes on beyond it).
+    pub(super) fn next_surface(
+        &self,
+        mut ray: Ray,
+        rng: &mut Pcg32,
+        counters: &mut PathCounters,
+    ) -> Option<(Hit, Material)> {
+        for _ in 0..MAX_MASK_CROSSINGS {
+            let hit = self.intersector.intersect(&ray)?;
+            let (material, opacity) = self.scene.material_at(hit.primitive, hit.barycentrics);
+            if opacity >= 1.0 || rng.next_f32() < opacity {
+                return Some((hit, material));
+            }
+            let point = self.scene.triangles[hit.primitive as usize].point(hit.barycentrics);
+            let normal = self.scene.normals[hit.primitive as usize];
+            ray = Ray { origin: self.spawn(point, normal, ray.direction), t_max: ray.t_max - hit.t, ..ray };
+            counters.rays += 1;
+        }
+        None
+    }
+
+    /// The share of light that passes along the segment `ray`: 0 when something opaque
+    /// blocks it, else the product of (1 − opacity) of the masked surfaces it crosses.
+    pub(super) fn transmittance(&self, mut ray: Ray, counters: &mut PathCounters) -> f32 {
+        if !self.masks {
+            return if self.intersector.occluded(&ray) { 0.0 } else { 1.0 };
+        }
+        let mut transmittance = 1.0;
+        for _ in 0..MAX_MASK_CROSSINGS {
+            let Some(hit) = self.intersector.intersect(&ray) else { return transmittance };
+            let (_, opacity) = self.scene.material_at(hit.primitive, hit.barycentrics);
+            transmittance *= 1.0 - opacity;
+            if transmittance <= 0.0 {
+                return 0.0;
+            }
+            let point = self.scene.triangles[hit.primitive as usize].point(hit.barycentrics);
+            let normal = self.scene.normals[hit.primitive as usize];
+            let origin = self.spawn(point, normal, ray.direction);
+            ray = Ray { origin, t_max: ray.t_max - (origin - ray.origin).length(), ..ray };
+            counters.rays += 1;
+        }
+        0.0
+    }
+
+    /// Image-space jitter plus camera ray for pixel (x, y).
+    pub fn camera_ray(&self, x: u32, y: u32, rng: &mut Pcg32) -> Ray {
+        let jitter = rng.next_vec2();
+        self.scene.camera.ray(Vec2::new(x as f32 + jitter.x, y as f32 + jitter.y))
+    }
+}
