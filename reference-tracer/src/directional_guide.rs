@@ -157,6 +157,25 @@ impl DirectionalGuide {
         })
     }
 
+    /// Adds what `other` learned (guiding-core's `HemisphereGrid::merge`: exact for the
+    /// simple average). Both must be hemisphere grids built over the same scene with the
+    /// same settings; the other structures cannot be merged yet and are refused by name.
+    pub fn merge(&mut self, other: &DirectionalGuide) -> Result<(), String> {
+        match (self, other) {
+            (DirectionalGuide::Hemisphere(grid), DirectionalGuide::Hemisphere(other)) => {
+                grid.merge(other).map_err(|e| format!("merging hemisphere grids: {e}"))
+            }
+            (this, other) if this.structure() != other.structure() => Err(format!(
+                "cannot merge a {} guide into a {} guide",
+                other.structure().name(),
+                this.structure().name()
+            )),
+            (this, _) => {
+                Err(format!("merging is built for hemisphere grids only, not {} guides", this.structure().name()))
+            }
+        }
+    }
+
     /// Its counters and size.
     pub fn stats(&self) -> GuideStats {
         match self {

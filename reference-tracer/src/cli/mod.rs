@@ -4,6 +4,7 @@
 
 mod compare;
 mod convert;
+mod merge_guides;
 mod options;
 mod outputs;
 mod prepare;
@@ -21,6 +22,7 @@ use clap::{Parser, Subcommand};
 
 use compare::{run_compare, CompareArgs};
 use convert::{run_convert, ConvertArgs};
+use merge_guides::{run_merge_guides, MergeGuidesArgs};
 use reference::{run_reference, ReferenceArgs};
 use render::{run_render, RenderArgs};
 
@@ -45,6 +47,9 @@ enum Command {
     /// Read a pbrt-v3 (.pbrt) or Mitsuba (.xml) scene and write it in the project's
     /// JSON format (file names made relative to the output's folder).
     Convert(ConvertArgs),
+    /// Combine guides saved by `render --save-guide` from renders of the same scene (a
+    /// render farm's nodes, or processes with other seeds) into one.
+    MergeGuides(MergeGuidesArgs),
 }
 
 impl Cli {
@@ -55,6 +60,7 @@ impl Cli {
             Command::Reference(args) => run_reference(args),
             Command::Compare(args) => run_compare(args),
             Command::Convert(args) => run_convert(args),
+            Command::MergeGuides(args) => run_merge_guides(args),
         }
     }
 }

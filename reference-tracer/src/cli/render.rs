@@ -8,6 +8,7 @@ use super::options::{parse_method, resize, TraceOptions};
 use super::outputs::{sibling, statistics_json, write_outputs};
 use super::prepare::prepare_with_lights;
 use super::progressive::{describe_shares, render_prepared, thread_pool};
+use crate::directional_guide::DirectionalGuide;
 use crate::integrator::Method;
 use crate::output::read_image;
 use crate::render::{Budget, RenderSettings};
@@ -38,6 +39,14 @@ pub(super) struct RenderArgs {
     /// Reference image (.exr/.pfm/.hdr) for error against time (IMAGE.csv).
     #[arg(long)]
     pub(super) reference: Option<PathBuf>,
+    /// Start from this saved directional guide (of the --guide structure) instead of an
+    /// empty one: it keeps learning, as a fresh one would.
+    #[arg(long)]
+    pub(super) load_guide: Option<PathBuf>,
+    /// Save the directional guide learned by the end of the render (guiding-core's byte
+    /// image; `merge-guides` combines several).
+    #[arg(long)]
+    pub(super) save_guide: Option<PathBuf>,
 }
 
 pub(super) fn run_render(args: &RenderArgs) -> Result<(), String> {
@@ -58,6 +67,15 @@ pub(super) fn run_render(args: &RenderArgs) -> Result<(), String> {
     let mut prepared =
         prepare_with_lights(&args.scene, options.intersector, guide, options.light_request(args.integrator)?)?;
     resize(&mut prepared, options.resolution);
+    if let Some(path) = &args.load_guide {
+        let Some(built) = &prepared.guide else {
+            return Err(format!("--load-guide {}: this render has no directional guide", path.display()));
+        };
+        let bytes = std::fs::read(path).map_err(|e| format!("--load-guide {}: {e}", path.display()))?;
+        let loaded = DirectionalGuide::from_bytes(built.structure(), &bytes)
+            .map_err(|e| format!("--load-guide {}: {e}", path.display()))?;
+        prepared.guide = Some(loaded);
+    }
     prepared.device = options.device;
     prepared.focal_settings = options.focal_settings()?;
     prepared.guide_share_cost = options.guide_share_cost;
@@ -119,6 +137,13 @@ pub(super) fn run_render(args: &RenderArgs) -> Result<(), String> {
     }
     if let Some(shares) = describe_shares(&prepared, args.integrator) {
         eprintln!("shares: {shares}");
+    }
+    if let Some(path) = &args.save_guide {
+        let Some(guide) = &prepared.guide else {
+            return Err(format!("--save-guide {}: this render has no directional guide", path.display()));
+        };
+        std::fs::write(path, guide.to_bytes()).map_err(|e| format!("--save-guide {}: {e}", path.display()))?;
+        eprintln!("saved the guide to {}", path.display());
     }
     eprintln!("wrote {}", args.out.display());
     Ok(())
