@@ -51,6 +51,12 @@ pub enum Error {
         /// What is wrong with it.
         reason: &'static str,
     },
+    /// Two guides cannot be merged: they were not built over the same scene with the
+    /// same settings.
+    Incompatible {
+        /// What differs (`settings`, `probes`).
+        what: &'static str,
+    },
     /// A serialized guide could not be read.
     Decode(DecodeError),
 }
@@ -137,6 +143,12 @@ impl fmt::Display for Error {
                 write!(f, "directional resolution of {entries} entries per region exceeds the limit of {limit}")
             }
             Error::NoSurface => write!(f, "no triangle with finite, positive area to place probes on"),
+            Error::Incompatible { what } => {
+                write!(
+                    f,
+                    "the guides' {what} differ: only guides built over the same scene with the same settings merge"
+                )
+            }
             Error::NonFiniteTriangle { index } => {
                 write!(f, "triangle {index} has a NaN or infinite coordinate")
             }

@@ -65,6 +65,7 @@ impl Failure {
                 LodestarStatus::InvalidGeometry
             }
             Error::Decode(_) => LodestarStatus::DecodeFailed,
+            Error::Incompatible { .. } => LodestarStatus::InvalidArgument,
         };
         Self::new(status, format!("{during}: {error}"))
     }

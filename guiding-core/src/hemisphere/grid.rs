@@ -279,14 +279,11 @@ impl HemisphereGrid {
     /// for `update` and approximate for `update_sampled`. For the other learning rates
     /// the weighted mean is an approximation.
     pub fn merge(&mut self, other: &HemisphereGrid) -> Result<(), Error> {
-        let differs = |name: &'static str| {
-            Err(Error::InvalidSetting { name, value: 0.0, requirement: "the same as the grid merged into" })
-        };
         if self.settings != other.settings {
-            return differs("settings");
+            return Err(Error::Incompatible { what: "settings" });
         }
         if self.positions != other.positions || self.normals != other.normals {
-            return differs("probes");
+            return Err(Error::Incompatible { what: "probes" });
         }
         let entries = self.q.iter().zip(&self.patch_weights).zip(&self.patch_visits);
         let theirs = other.q.iter().zip(&other.patch_weights).zip(&other.patch_visits);
