@@ -83,6 +83,21 @@ pub struct RecordedVertex<R, E> {
     pub extra: E,
 }
 
+impl<R: Copy, E> RecordedVertex<R, E> {
+    /// Teaches `guide` this vertex's `target` (from [`PathRecorder::targets`]) where it
+    /// has a region: by [`Guide::update_sampled`] (weighed by the density the direction
+    /// was drawn with) when `density_weighted`, else by [`Guide::update`]. `None` without
+    /// a region.
+    pub fn teach<G: Guide<Region = R>>(&self, guide: &G, target: f32, density_weighted: bool) -> Option<UpdateOutcome> {
+        let region = self.region?;
+        Some(if density_weighted {
+            guide.update_sampled(region, self.direction, target, self.pdf)
+        } else {
+            guide.update(region, self.direction, target)
+        })
+    }
+}
+
 /// The vertices of the path being traced. `R` is the guide's region, `E` whatever else
 /// the renderer keeps per vertex (`()` for nothing).
 #[derive(Clone, Debug)]
@@ -174,22 +189,12 @@ impl<R: Copy, E: Copy> PathRecorder<R, E> {
         Targets { vertices: self.vertices.iter().rev(), next_target: 0.0 }
     }
 
-    /// Teaches `guide` every target at the vertices it has a region for: by
-    /// [`Guide::update_sampled`] (each direction weighed by the density it was drawn
-    /// with) when `density_weighted`, else by [`Guide::update`]. Returns how many
-    /// updates the guide accepted.
+    /// Teaches `guide` every target at the vertices it has a region for
+    /// ([`RecordedVertex::teach`]). Returns how many updates the guide accepted.
     pub fn learn<G: Guide<Region = R>>(&self, guide: &G, density_weighted: bool) -> usize {
-        let mut accepted = 0;
-        for (vertex, target) in self.targets() {
-            let Some(region) = vertex.region else { continue };
-            let outcome = if density_weighted {
-                guide.update_sampled(region, vertex.direction, target, vertex.pdf)
-            } else {
-                guide.update(region, vertex.direction, target)
-            };
-            accepted += usize::from(outcome == UpdateOutcome::Accepted);
-        }
-        accepted
+        self.targets()
+            .filter(|(vertex, target)| vertex.teach(guide, *target, density_weighted) == Some(UpdateOutcome::Accepted))
+            .count()
     }
 }
 

@@ -4,7 +4,7 @@
 //! through delta vertices with 1/survival, split between next-event estimation and
 //! scattering — is not re-derived in C.
 
-use guiding_core::{Guide, PathRecorder, ProbeId};
+use guiding_core::{PathRecorder, ProbeId};
 
 use crate::arguments::{borrow, direction, finite, point, Output};
 use crate::guide::{GuideStructure, LodestarGuide};
@@ -15,8 +15,8 @@ use crate::types::{LodestarRegion, LodestarVec3, LODESTAR_NO_REGION};
 /// records its own path). Create with `lodestar_path_recorder_create`, free with
 /// `lodestar_path_recorder_release`.
 pub struct LodestarPathRecorder {
-    /// Regions as the caller handed them (indices); checked against the guide at learn.
-    path: PathRecorder<u32>,
+    /// Regions as the caller handed them; checked against the guide at learn.
+    path: PathRecorder<ProbeId>,
 }
 
 /// Borrows a recorder for a call that changes it.
@@ -108,7 +108,7 @@ pub unsafe extern "C" fn lodestar_path_recorder_scattered(
             return Err(Failure::new(LodestarStatus::InvalidArgument, format!("`pdf` = {pdf} is not positive")));
         }
         let throughput = non_negative(throughput, "throughput")?;
-        let region = (region.index != LODESTAR_NO_REGION).then_some(region.index);
+        let region = (region.index != LODESTAR_NO_REGION).then_some(ProbeId(region.index));
         recorder.path.scattered(region, origin, wi, pdf, throughput, ());
         Ok(())
     })
@@ -211,25 +211,16 @@ pub unsafe extern "C" fn lodestar_path_recorder_learn(
         let accepted = match &guide.structure {
             GuideStructure::Hemisphere(grid) => {
                 let probes = grid.probe_count();
-                if let Some((vertex, index)) = recorder
-                    .path
-                    .vertices()
-                    .iter()
-                    .enumerate()
-                    .find_map(|(i, v)| v.region.filter(|&r| r as usize >= probes).map(|r| (i, r)))
-                {
+                let stale = recorder.path.vertices().iter().enumerate().find_map(|(i, vertex)| {
+                    vertex.region.filter(|region| region.0 as usize >= probes).map(|region| (i, region.0))
+                });
+                if let Some((vertex, index)) = stale {
                     return Err(Failure::new(
                         LodestarStatus::InvalidRegion,
                         format!("vertex {vertex}'s region {index} is past this guide's {probes} regions"),
                     ));
                 }
-                let mut accepted = 0;
-                for (vertex, target) in recorder.path.targets() {
-                    let Some(index) = vertex.region else { continue };
-                    let outcome = grid.update_sampled(ProbeId(index), vertex.direction, target, vertex.pdf);
-                    accepted += usize::from(outcome == guiding_core::UpdateOutcome::Accepted);
-                }
-                accepted
+                recorder.path.learn(grid, true)
             }
         };
         out.write(accepted);

@@ -320,14 +320,13 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
     /// along each direction. Rejected targets are counted by the guide itself (its
     /// `stats()`).
     pub(super) fn learn_from_path(&self, path: &PathRecorder<G::Region, VertexStrategies>, focal_learns: bool) {
-        if let Some(guide) = self.guide {
-            path.learn(guide, self.settings.density_weighted_learning);
-        }
         let focal = self.focal.filter(|_| focal_learns);
-        if self.guide_shares.is_none() && focal.is_none() {
-            return;
-        }
+        let weighted = self.settings.density_weighted_learning;
+        // One pass over the targets feeds every learner.
         for (vertex, target) in path.targets() {
+            if let Some(guide) = self.guide {
+                vertex.teach(guide, target, weighted);
+            }
             let strategies = &vertex.extra;
             if let (Some(shares), Some(arrival)) = (self.guide_shares, strategies.guide_arrival) {
                 shares.record(&StrategyArrival { integrand: arrival.integrand * target, ..arrival });
