@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 
-use super::options::{parse_method, resize, Auto, GuideChoice, TraceOptions};
+use super::options::{parse_method, Auto, GuideChoice, TraceOptions};
 use super::outputs::{sibling, statistics_json, write_outputs};
 use super::prepare::{prepare_with_lights, Device};
 use super::progressive::{render_prepared, thread_pool};
@@ -131,7 +131,7 @@ pub(super) fn run_compare(args: &CompareArgs) -> Result<(), String> {
             options.directional_guide(method, run.guide)?,
             options.light_request(method)?,
         )?;
-        resize(&mut prepared, options.resolution);
+        prepared.resize(options.resolution);
         prepared.device = compared.device;
         prepared.focal_settings = options.focal_settings()?;
         prepared.guide_share_cost = options.guide_share_cost;

@@ -4,7 +4,7 @@ use crate::scene_intersector::IntersectorChoice;
 use clap::Args;
 use guiding_core::{HemisphereMapping, IntegralEstimator, LearningRate, LightUpdateRule};
 
-use super::prepare::{Device, GuideShare, Prepared};
+use super::prepare::{Device, GuideShare};
 use crate::directional_guide::GuideStructure;
 use crate::film::Combine;
 use crate::integrator::{EnvironmentSampling, LightSelection, Method};
@@ -19,13 +19,6 @@ pub(super) fn parse_resolution(s: &str) -> Result<[u32; 2], String> {
         return Err(format!("`{s}`: each side must be in 1..={limit}"));
     }
     Ok([width, height])
-}
-
-/// Renders `prepared` at `resolution` when one is given.
-pub(super) fn resize(prepared: &mut Prepared, resolution: Option<[u32; 2]>) {
-    if let Some([width, height]) = resolution {
-        prepared.scene.camera = prepared.scene.camera.with_resolution(width, height);
-    }
 }
 
 /// The learned guide share's default cost of guiding (`--guide-share-cost`).

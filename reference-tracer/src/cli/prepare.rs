@@ -107,6 +107,13 @@ pub struct Prepared {
 }
 
 impl Prepared {
+    /// Renders at `resolution` (the same vertical field of view) when one is given.
+    pub(super) fn resize(&mut self, resolution: Option<[u32; 2]>) {
+        if let Some([width, height]) = resolution {
+            self.scene.camera = self.scene.camera.with_resolution(width, height);
+        }
+    }
+
     #[cfg(feature = "gpu")]
     pub(super) fn render_on_gpu(
         &mut self,

@@ -6,7 +6,7 @@ use crate::scene_intersector::IntersectorChoice;
 use clap::Args;
 use guiding_core::HemisphereGridSettings;
 
-use super::options::{parse_method, parse_resolution, resize};
+use super::options::{parse_method, parse_resolution};
 use super::outputs::{sibling, statistics_json, write_outputs};
 use super::prepare::{prepare_with_lights, LightRequest};
 use super::progressive::{render_prepared, thread_pool};
@@ -56,7 +56,7 @@ pub(super) fn run_reference(args: &ReferenceArgs) -> Result<(), String> {
     let guide = args.integrator.uses_guide().then(|| HemisphereGridSettings::default().into());
     let lights = LightRequest::new(Some(args.light_selection), Some(args.env_sampling), args.integrator.uses_nee());
     let mut prepared = prepare_with_lights(&args.scene, IntersectorChoice::fastest(), guide, lights)?;
-    resize(&mut prepared, args.resolution);
+    prepared.resize(args.resolution);
     let integrator = IntegratorSettings {
         method: args.integrator,
         light_selection: args.light_selection,

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 
-use super::options::{parse_method, resize, TraceOptions};
+use super::options::{parse_method, TraceOptions};
 use super::outputs::{sibling, statistics_json, write_outputs};
 use super::prepare::prepare_with_lights;
 use super::progressive::{describe_shares, render_prepared, thread_pool};
@@ -66,7 +66,7 @@ pub(super) fn run_render(args: &RenderArgs) -> Result<(), String> {
     let pool = thread_pool(options.threads)?;
     let mut prepared =
         prepare_with_lights(&args.scene, options.intersector, guide, options.light_request(args.integrator)?)?;
-    resize(&mut prepared, options.resolution);
+    prepared.resize(options.resolution);
     if let Some(path) = &args.load_guide {
         let Some(built) = &prepared.guide else {
             return Err(format!("--load-guide {}: this render has no directional guide", path.display()));
