@@ -35,6 +35,7 @@ fn scene() -> Vec<Triangle> {
 struct Tracer {
     triangles: Vec<Triangle>,
     light: usize, // the first light triangle
+    light_area: f32,
     bvh: ObvhsIntersector,
     guide: Option<HemisphereGrid>,
 }
@@ -43,8 +44,8 @@ struct Tracer {
 fn radiance(tracer: &Tracer, mut ray: Ray, path: &mut PathRecorder<ProbeId>, rng: &mut Pcg32) -> f32 {
     let (mut throughput, mut radiance, mut last_pdf) = (1.0f32, 0.0f32, None::<f32>);
     let mis = |a: f32, b: f32| a * a / (a * a + b * b); // the power heuristic
-    let area: f32 = tracer.triangles[tracer.light..].iter().map(Triangle::area).sum();
-    let light_pdf = |from: Vec3, p: Vec3, n: Vec3| (p - from).length_squared() / (area * n.dot((from - p).normalize()));
+    let light_pdf =
+        |a: Vec3, p: Vec3, n: Vec3| a.distance_squared(p) / (tracer.light_area * n.dot((a - p).normalize()));
     path.clear();
     for depth in 0..16 {
         let Some(hit) = tracer.bvh.intersect(&ray) else { break };
@@ -66,8 +67,7 @@ fn radiance(tracer: &Tracer, mut ray: Ray, path: &mut PathRecorder<ProbeId>, rng
             Some((g, r)) => GUIDE_SHARE * g.pdf(r, wi) + (1.0 - GUIDE_SHARE) * cosine_pdf(wi),
             None => cosine_pdf(wi),
         };
-        // Next-event estimation: a uniform point on one of the light's two triangles.
-        let light = &tracer.triangles[tracer.light + usize::from(rng.next_f32() < 0.5)];
+        let light = &tracer.triangles[tracer.light + usize::from(rng.next_f32() < 0.5)]; // next-event estimation
         let on_light = light.point(square_to_triangle_barycentrics(rng.next_vec2()));
         let (wi, distance, spawn) = ((on_light - point).normalize(), on_light.distance(point), point + normal * 1e-4);
         let light_normal = light.normal().expect("a light with area");
@@ -98,8 +98,7 @@ fn radiance(tracer: &Tracer, mut ray: Ray, path: &mut PathRecorder<ProbeId>, rng
             break;
         }
         (throughput, factor) = (throughput / survival, factor / survival);
-        // This vertex learns from the path's own continuation, passed back by the factor.
-        path.carry(factor);
+        path.carry(factor); // this vertex learns from the path's own continuation, passed back by the factor
         path.scattered(located.map(|(_, r)| r), point, wi, pdf, throughput, ());
         (ray, last_pdf) = (Ray::new(spawn, wi), Some(pdf));
     }
@@ -132,8 +131,9 @@ fn render(tracer: &mut Tracer, seed: u64) -> (Vec<f32>, f64, f64) {
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let triangles = scene();
     let (light, bvh) = (triangles.len() - 2, ObvhsIntersector::build(&triangles, BvhKind::default()));
+    let light_area = triangles[light..].iter().map(Triangle::area).sum();
     let guide = HemisphereGrid::build(&triangles[..light], HemisphereGridSettings::default())?;
-    let mut tracer = Tracer { triangles, light, bvh, guide: None };
+    let mut tracer = Tracer { triangles, light, light_area, bvh, guide: None };
     let (_, a, sa) = render(&mut tracer, 1);
     tracer.guide = Some(guide);
     let (image, b, sb) = render(&mut tracer, 2);
