@@ -77,6 +77,9 @@ pub struct RecordedVertex<R, E> {
     /// Radiance (luminance) that arrived along the direction: the next vertex's emission
     /// times its MIS weight, plus the light its own light sample reflected back.
     pub arriving: f32,
+    /// Radiance (luminance) that arrived along the direction which this vertex learns
+    /// but does not pass back to its predecessor ([`PathRecorder::arrive_learned_only`]).
+    pub learned_only: f32,
     /// What the vertex learns beyond that.
     pub onward: Onward,
     /// What the renderer keeps beside each vertex for its own learners.
@@ -143,6 +146,7 @@ impl<R: Copy, E: Copy> PathRecorder<R, E> {
             length: f32::INFINITY,
             throughput,
             arriving: 0.0,
+            learned_only: 0.0,
             onward: Onward::End,
             extra,
         });
@@ -160,6 +164,27 @@ impl<R: Copy, E: Copy> PathRecorder<R, E> {
     pub fn arrive(&mut self, radiance: f32) {
         if let Some(last) = self.vertices.last_mut() {
             last.arriving += radiance;
+        }
+    }
+
+    /// Radiance (luminance) arrived along the last direction that this vertex learns
+    /// but its predecessor must not: with next-event estimation the predecessor's target
+    /// already holds the emission a direction finds only by its MIS weight, the light
+    /// sample bringing the rest, while a guide that learns the full incident radiance
+    /// (weighing the light samples in by the densities of both strategies) needs the
+    /// emission whole here.
+    pub fn arrive_learned_only(&mut self, radiance: f32) {
+        if let Some(last) = self.vertices.last_mut() {
+            last.learned_only += radiance;
+        }
+    }
+
+    /// Adds `pdf` (per steradian) to the density the last direction counts as drawn with:
+    /// a second strategy that could have drawn it (a light sample, for an emitter found
+    /// by scattering) makes it a sample of their deterministic mixture.
+    pub fn add_density(&mut self, pdf: f32) {
+        if let Some(last) = self.vertices.last_mut() {
+            last.pdf += pdf;
         }
     }
 
@@ -216,7 +241,7 @@ impl<'a, R, E> Iterator for Targets<'a, R, E> {
         };
         let target = vertex.arriving + onward;
         self.next_target = target;
-        Some((vertex, target))
+        Some((vertex, target + vertex.learned_only))
     }
 }
 
@@ -240,6 +265,20 @@ mod tests {
         path.arrive(100.0);
         // The first vertex learns its own estimate, not what the second one saw.
         assert_eq!(targets(&path), [100.0, 0.75]);
+    }
+
+    #[test]
+    fn what_is_learned_only_stays_at_its_vertex() {
+        let mut path: PathRecorder<u8> = PathRecorder::new();
+        path.scattered(Some(0), Vec3::ZERO, Vec3::Z, 1.0, 1.0, ());
+        path.carry(0.5);
+        path.scattered(Some(1), Vec3::Z, Vec3::X, 2.0, 1.0, ());
+        path.arrive(1.0);
+        path.arrive_learned_only(3.0);
+        path.add_density(0.5);
+        assert_eq!(path.vertices()[1].pdf, 2.5);
+        // The second vertex learns 1 + 3, the first half of the 1 alone.
+        assert_eq!(targets(&path), [4.0, 0.5]);
     }
 
     #[test]

@@ -229,18 +229,35 @@ fn assert_iterative_tree_agrees(scene: &std::path::Path, spp: u32, reference_spp
     // targets back to it).
     let first_vertex =
         reference_tracer::integrator::IntegratorSettings { guide_depth: 1, ..settings(Method::GuidedNee) };
-    for (i, integrator) in [settings(Method::Guided), settings(Method::GuidedNee), first_vertex].into_iter().enumerate()
-    {
+    // Guided with next-event estimation in its training passes only (their images
+    // MIS-weighted, the frozen ones without it), the guide learning the light samples too.
+    let kickstart =
+        reference_tracer::integrator::IntegratorSettings { nee_kickstart: true, ..settings(Method::Guided) };
+    let cases = [settings(Method::Guided), settings(Method::GuidedNee), first_vertex, kickstart];
+    for (i, integrator) in cases.into_iter().enumerate() {
         let method = integrator.method;
         let (_, statistics) =
             support::render_scheduled(scene, integrator, Some(tree.into()), spp, 20 + i as u64, Schedule::Iterative);
         assert!(statistics.training_passes > 0 && statistics.passes == spp, "{statistics:?}");
         support::assert_agree(
-            &format!("{} tree iterative (guide depth {}) vs nee", method.name(), integrator.guide_depth),
+            &format!(
+                "{} tree iterative (guide depth {}, kickstart {}) vs nee",
+                method.name(),
+                integrator.guide_depth,
+                integrator.nee_kickstart
+            ),
             &mean_estimate(&statistics),
             &reference,
         );
     }
+    // The grid, kickstarted, learning from the path's continuation.
+    let grid = HemisphereGridSettings {
+        update_rule: UpdateRule { integral: IntegralEstimator::PathContinuation, ..Default::default() },
+        ..Default::default()
+    };
+    let (_, statistics) = support::render_scheduled(scene, kickstart, Some(grid.into()), spp, 30, Schedule::Iterative);
+    assert!(statistics.training_passes > 0, "{statistics:?}");
+    support::assert_agree("guided grid kickstart vs nee", &mean_estimate(&statistics), &reference);
 }
 
 #[test]

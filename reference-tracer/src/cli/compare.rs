@@ -133,7 +133,7 @@ pub(super) fn run_compare(args: &CompareArgs) -> Result<(), String> {
         )?;
         prepared.resize(options.resolution);
         prepared.device = compared.device;
-        prepared.focal_settings = options.focal_settings()?;
+        prepared.focal_settings = options.focal_settings(method)?;
         prepared.guide_share_cost = options.guide_share_cost;
         eprintln!("{name}: plan: {}", prepared.plan.describe());
         let camera = &prepared.scene.camera;

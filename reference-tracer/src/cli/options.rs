@@ -63,7 +63,8 @@ pub struct TraceOptions {
     #[arg(long)]
     pub(super) p_guide: Option<f32>,
     /// Only the first N vertices of each path use the guide; deeper ones sample the BSDF
-    /// alone, at nee's cost per vertex. Default 1 on the CPU, measured best: guided-nee ÷
+    /// alone, at nee's cost per vertex. Default 1 on the CPU for guided-nee (every vertex for
+    /// guided, which has no light samples to lean on), measured best: guided-nee ÷
     /// nee at 20 s on cornell 128² 1.01–1.09 (every vertex: 1.29), on door 160×120 1.21
     /// (every vertex: 1.45; 2: 1.16). The GPU tracer guides every vertex.
     #[arg(long)]
@@ -72,8 +73,8 @@ pub struct TraceOptions {
     /// through, learned from the segments that carried it) instead of the BSDF, at every
     /// vertex of a guided method; each region of space learns its own share up to it (the
     /// least variance among 0, 0.02, … 0.5, --focal-share-cost); p_guide + p_focal ≤ 1. 0 leaves it out.
-    /// Default 0.5 (at most 1 − p_guide) on the CPU, 0 on the GPU (which has no focal
-    /// guide). 0.5 with `--guide none --p-guide 0 --schedule iterative`, at 60 s: door
+    /// Default 0.5 (at most 1 − p_guide) on the CPU for guided-nee, 0 for guided (see
+    /// --nee-kickstart) and on the GPU (which has no focal guide). 0.5 with `--guide none --p-guide 0 --schedule iterative`, at 60 s: door
     /// 160×120 0.57–0.60 × nee's relMSE, cornell 128² 1.02 ×.
     #[arg(long)]
     pub(super) p_focal: Option<f32>,
@@ -138,8 +139,8 @@ pub struct TraceOptions {
     /// Integral of Eq. (1): sampled (the weighted sum for diffuse surfaces, one BSDF
     /// sample for glossy ones: on Veach Ajar 3× the paths/s of weighted, and a 4.7× lower
     /// relMSE at 30 s), weighted (BSDF-weighted sum over every patch), stratified, max, or
-    /// path (the path's own continuation, no lookup). Default: path for the tree,
-    /// sampled for the others.
+    /// path (the path's own continuation, no lookup). Default: path for the tree and for
+    /// the grid under guided, sampled for the others.
     #[arg(long, value_parser = parse_integral)]
     pub(super) integral: Option<IntegralEstimator>,
     /// When guided methods learn: online (every pass, every pass kept) or iterative
@@ -200,6 +201,16 @@ pub struct TraceOptions {
     /// tracer samples by Q alone.
     #[arg(long, value_parser = parse_switch)]
     pub(super) cosine_product: Option<bool>,
+    /// The guided method without next-event estimation (`guided`) runs it all the same in
+    /// its learning passes (on, off): their images gain its light samples, and the guides
+    /// learn the full incident radiance, lights included, which the frozen passes then
+    /// sample without it (Practical Path Guiding's "kickstart"). Default on for guided on
+    /// the CPU, with the guide at every vertex and no focal guide: guided ÷ pt's relMSE at
+    /// 20 s went from 1.27 to 0.48 on door 160×120 and from 0.47 to 0.25 on cornell 128²,
+    /// but from 0.61 to 1.21 on many_lights 160×120 (the numbers at `without_nee_defaults`
+    /// in cli/settings.rs). The GPU tracer has none.
+    #[arg(long, value_parser = parse_switch)]
+    pub(super) nee_kickstart: Option<bool>,
     /// Guided methods: seconds of training passes whose samples are discarded (their
     /// time counts towards --seconds).
     #[arg(long, default_value_t = 0.0)]

@@ -191,6 +191,11 @@ impl Prepared {
         mut on_pass: impl FnMut(&Progress<'_>),
     ) -> Result<(Image, RenderStatistics), String> {
         if self.device == Device::Gpu {
+            if settings.integrator.nee_kickstart && settings.integrator.method == Method::Guided {
+                return Err("--nee-kickstart on: the GPU tracer's guided method has no next-event estimation \
+                            to learn from (use --nee-kickstart off)"
+                    .into());
+            }
             return self.render_on_gpu(settings, on_pass);
         }
         let guided = settings.integrator.method.uses_guide();

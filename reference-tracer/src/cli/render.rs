@@ -77,7 +77,7 @@ pub(super) fn run_render(args: &RenderArgs) -> Result<(), String> {
         prepared.guide = Some(loaded);
     }
     prepared.device = options.device;
-    prepared.focal_settings = options.focal_settings()?;
+    prepared.focal_settings = options.focal_settings(args.integrator)?;
     prepared.guide_share_cost = options.guide_share_cost;
     for warning in &prepared.scene.warnings {
         eprintln!("warning: {}: {warning}", args.scene.display());

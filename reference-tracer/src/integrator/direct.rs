@@ -9,9 +9,34 @@ use guiding_core::{DirectionalDistribution, GateCell, Guide, Hit, Intersector, L
 use super::counters::{PathCounters, GATE_PATH_STRIDE};
 use super::method::LightSelection;
 use super::tracer::{nee_partner_pdf, GuideClock, NeeCells, PathTracer};
+use crate::color::luminance;
 use crate::environment::Environment;
 use crate::material::{Material, ShadingFrame};
 use crate::sampling::power_heuristic;
+
+/// One light sample's result: the radiance it adds (MIS-weighted against scattering)
+/// and, where it reached the light, the sample itself for learners that learn from
+/// light samples (`IntegratorSettings::nee_kickstart`).
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct DirectLight {
+    /// Reflected radiance towards `wo`, MIS-weighted.
+    pub(super) radiance: Vec3,
+    /// The unoccluded light sample, if any.
+    pub(super) sample: Option<LightSampleRecord>,
+}
+
+/// An unoccluded light sample as a record of incident radiance.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct LightSampleRecord {
+    /// Towards the light (unit).
+    pub(super) direction: Vec3,
+    /// Incident radiance (luminance) along `direction`, unweighted.
+    pub(super) incident: f32,
+    /// Density of the light sample, per steradian.
+    pub(super) light_pdf: f32,
+    /// Density with which scattering draws `direction`, per steradian.
+    pub(super) scatter_pdf: f32,
+}
 
 impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
     /// Density with which next-event estimation produces direction `wi` towards an
@@ -75,23 +100,24 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         rng: &mut Pcg32,
         clock: &mut GuideClock,
         counters: &mut PathCounters,
-    ) -> Vec3 {
+    ) -> DirectLight {
+        let nothing = DirectLight::default();
         let (u_choice, u_select, u) = (rng.next_f32(), rng.next_f32(), rng.next_vec2());
         // The gate may leave this vertex's light to the scattered direction; the number is
         // drawn only where it can, so ungated paths keep their random streams.
         let gate = self.next_event_probability(cells.gate);
         if gate < 1.0 && rng.next_f32() >= gate {
-            return Vec3::ZERO;
+            return nothing;
         }
         // The light chosen and its point pdf (per steradian, before selection), for learning.
         let mut chosen: Option<(u32, f32)> = None;
         // The environment guide's cell and lobe, for learning.
         let mut tile: Option<(EnvCell, EnvSample)> = None;
         let (wi, emitted, light_pdf, distance) = if u_choice < self.environment_choice {
-            let Some(environment) = &self.scene.environment else { return Vec3::ZERO };
+            let Some(environment) = &self.scene.environment else { return nothing };
             match self.environment_guide {
                 Some(guide) => {
-                    let Some(cell) = guide.cell(point) else { return Vec3::ZERO };
+                    let Some(cell) = guide.cell(point) else { return nothing };
                     let s = clock.time(|| guide.distribution(cell).sample_lobe(u_select, u));
                     tile = Some((cell, s));
                     (
@@ -102,15 +128,15 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                     )
                 }
                 None => {
-                    let Some(s) = environment.sample(u_select, u) else { return Vec3::ZERO };
+                    let Some(s) = environment.sample(u_select, u) else { return nothing };
                     (s.wi, s.radiance, gate * self.environment_choice * s.pdf, f32::INFINITY)
                 }
             }
         } else {
-            let Some((light, probability)) = self.select_light(cells.light, u_select) else { return Vec3::ZERO };
+            let Some((light, probability)) = self.select_light(cells.light, u_select) else { return nothing };
             let Some(s) = self.scene.lights.sample_point(light, point, u) else {
                 self.learn_light(cells, light, 0.0, false, counters.paths);
-                return Vec3::ZERO;
+                return nothing;
             };
             chosen = Some((light, s.pdf));
             (s.wi, s.radiance, gate * (1.0 - self.environment_choice) * probability * s.pdf, s.distance)
@@ -119,7 +145,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             if let Some((cell, sample)) = tile {
                 self.learn_environment(cell, &sample, Vec3::ZERO);
             }
-            return Vec3::ZERO;
+            return nothing;
         }
         let f = material.eval(shading, wo, wi);
         if f == Vec3::ZERO {
@@ -129,7 +155,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             if let Some((cell, sample)) = tile {
                 self.learn_environment(cell, &sample, Vec3::ZERO);
             }
-            return Vec3::ZERO;
+            return nothing;
         }
         let origin = self.spawn(point, geometric_normal, wi);
         let t_max = if distance.is_finite() {
@@ -152,8 +178,9 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             self.learn_environment(cell, &sample, f * transmittance);
         }
         if occluded {
-            return Vec3::ZERO;
+            return nothing;
         }
+        let kickstart = self.kickstarts();
         let scatter_pdf = if self.settings.nee_weighs_guide {
             let guide = distribution.map(|distribution| (clock.time(|| distribution.pdf(wi)), guide_share));
             self.scatter_pdf(material, shading, wo, wi, guide, focal_share)
@@ -162,7 +189,19 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             nee_partner_pdf(material.pdf(shading, wo, wi), guide_share, focal_share)
         };
         let weight = power_heuristic(light_pdf, scatter_pdf);
-        f * emitted * (weight * transmittance / light_pdf)
+        let radiance = f * emitted * (weight * transmittance / light_pdf);
+        // Learning from the sample weighs it by the density of both strategies that draw
+        // its direction (the balance heuristic's deterministic mixture), the guide's in it.
+        let sample = kickstart.then(|| {
+            let guide = distribution.map(|distribution| (distribution.pdf(wi), guide_share));
+            LightSampleRecord {
+                direction: wi,
+                incident: luminance(emitted) * transmittance,
+                light_pdf,
+                scatter_pdf: self.scatter_pdf(material, shading, wo, wi, guide, focal_share),
+            }
+        });
+        DirectLight { radiance, sample }
     }
 
     /// The probability that next-event estimation runs at `point`: the light guide's

@@ -43,6 +43,12 @@ pub struct IntegratorSettings {
     pub nee_weighs_guide: bool,
     /// Whether guided paths update the guide.
     pub learn: bool,
+    /// Whether the guided method without next-event estimation (`Method::Guided`) runs
+    /// it in learning passes all the same ("kickstart", as Practical Path Guiding's
+    /// implementation offers): those passes' images gain its light samples (MIS-weighted,
+    /// unbiased), and the guides learn the full incident radiance from them, lights
+    /// included, which the frozen passes then sample without next-event estimation.
+    pub nee_kickstart: bool,
     /// How next-event estimation picks an area light.
     pub light_selection: LightSelection,
     /// How next-event estimation samples the environment.
@@ -63,6 +69,7 @@ impl Default for IntegratorSettings {
             density_weighted_learning: true,
             nee_weighs_guide: false,
             learn: true,
+            nee_kickstart: false,
             light_selection: LightSelection::Power,
             environment_sampling: EnvironmentSampling::Luminance,
         }

@@ -10,7 +10,8 @@ use guiding_core::{
 };
 
 use super::counters::PathCounters;
-use super::method::{EnvironmentSampling, LightSelection};
+use super::direct::LightSampleRecord;
+use super::method::{EnvironmentSampling, LightSelection, Method};
 use super::settings::IntegratorSettings;
 use crate::color::luminance;
 use crate::material::{Material, ShadingFrame};
@@ -46,13 +47,25 @@ pub struct VertexStrategies {
 /// guide's region type.
 pub struct PathScratch<R> {
     pub(super) path: PathRecorder<R, VertexStrategies>,
+    /// The path's unoccluded light samples, where it learns from them
+    /// (`IntegratorSettings::nee_kickstart`).
+    pub(super) light_samples: Vec<LearnedLightSample<R>>,
     pub(super) clock: GuideClock,
 }
 
 impl<R> Default for PathScratch<R> {
     fn default() -> Self {
-        Self { path: PathRecorder::default(), clock: GuideClock::default() }
+        Self { path: PathRecorder::default(), light_samples: Vec::new(), clock: GuideClock::default() }
     }
+}
+
+/// A light sample kept for learning at the end of its path.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct LearnedLightSample<R> {
+    /// The guide's region at the vertex it left from.
+    pub(super) region: R,
+    /// The sample.
+    pub(super) record: LightSampleRecord,
 }
 
 /// Accumulates the time of guide calls on the paths chosen for timing.
@@ -198,6 +211,20 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
     pub fn with_guide_shares(mut self, shares: Option<&'a StrategyShares>) -> Self {
         self.guide_shares = shares.filter(|_| self.guide.is_some() && self.settings.learned_guide_share);
         self
+    }
+
+    /// Whether this pass runs next-event estimation only to learn from it
+    /// ([`IntegratorSettings::nee_kickstart`]).
+    pub(super) fn kickstarts(&self) -> bool {
+        self.settings.nee_kickstart
+            && self.settings.learn
+            && self.settings.method == Method::Guided
+            && (self.guide.is_some() || self.focal.is_some())
+    }
+
+    /// Whether this pass estimates next-event light (the method's own, or to learn).
+    pub(super) fn estimates_nee(&self) -> bool {
+        self.settings.method.uses_nee() || self.kickstarts()
     }
 
     /// Offset of a ray leaving `point` on the side of `normal` that `direction` points to:
