@@ -203,6 +203,14 @@ impl<R: Copy, E: Copy> PathRecorder<R, E> {
         }
     }
 
+    /// Whether the last direction's vertex learns from an estimate of Eq. (1)'s integral
+    /// at the vertex it reached ([`estimate`](Self::estimate)), which then holds all the
+    /// light leaving there: light that vertex's own light sample found must not also
+    /// arrive where the estimate already counts it.
+    pub fn last_is_estimated(&self) -> bool {
+        self.vertices.last().is_some_and(|v| matches!(v.onward, Onward::Integral(_)))
+    }
+
     /// The last vertex recorded, to amend what the renderer keeps beside it.
     pub fn last_mut(&mut self) -> Option<&mut RecordedVertex<R, E>> {
         self.vertices.last_mut()
@@ -260,7 +268,9 @@ mod tests {
         path.scattered(Some(0), Vec3::ZERO, Vec3::Z, 1.0, 1.0, ());
         path.reached(1.0);
         path.arrive(0.25);
+        assert!(!path.last_is_estimated());
         path.estimate(0.5);
+        assert!(path.last_is_estimated());
         path.scattered(Some(1), Vec3::Z, Vec3::X, 1.0, 1.0, ());
         path.arrive(100.0);
         // The first vertex learns its own estimate, not what the second one saw.

@@ -3,8 +3,8 @@
 
 use glam::Vec3;
 use guiding_core::{
-    DirectionalDistribution, FocalArrival, FocalRecord, Guide, Intersector, Lambertian, Onward, PathRecorder, Pcg32,
-    Ray, StrategyArrival,
+    DirectionalDistribution, FocalArrival, FocalRecord, Guide, Intersector, Lambertian, PathRecorder, Pcg32, Ray,
+    StrategyArrival,
 };
 
 use super::counters::{PathCounters, TIMED_PATH_STRIDE};
@@ -182,9 +182,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                 radiance += throughput * direct.radiance;
                 // A guide learning the full incident radiance has this light in its own
                 // ∫ Q fs cos already: the predecessor's estimate must not count it twice.
-                let estimated =
-                    matches!(scratch.path.vertices().last(), Some(v) if matches!(v.onward, Onward::Integral(_)));
-                if !(kickstart && estimated) {
+                if !(kickstart && scratch.path.last_is_estimated()) {
                     scratch.path.arrive(luminance(direct.radiance));
                 }
                 if let (Some(mut record), Some(region)) = (direct.sample, region) {
@@ -318,7 +316,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             let focal_learns = self.focal.is_some() && rng.next_f32() < settings.focal_learning_share;
             let path = &scratch.path;
             let light_samples = &scratch.light_samples;
-            scratch.clock.time(|| self.learn_from_path(path, light_samples, focal_learns));
+            scratch.clock.time(|| self.teach_learners(path, light_samples, focal_learns));
         }
         if scratch.clock.enabled {
             counters.timed_paths += 1;
@@ -355,7 +353,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
     /// targets (from the recorder), the learned shares and the focal guide what arrived
     /// along each direction. Rejected targets are counted by the guide itself (its
     /// `stats()`).
-    pub(super) fn learn_from_path(
+    pub(super) fn teach_learners(
         &self,
         path: &PathRecorder<G::Region, VertexStrategies>,
         light_samples: &[LearnedLightSample<G::Region>],
