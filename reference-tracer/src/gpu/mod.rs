@@ -50,64 +50,28 @@
 
 mod context;
 mod guide_buffers;
+mod params;
+mod readback;
 mod scene_buffers;
 
 use std::time::Instant;
 
-use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
-use guiding_core::{GaussianMixture, Guide, HemisphereGrid, IrradianceVolume, LearningRate};
+use guiding_core::{GaussianMixture, Guide, IrradianceVolume};
 use wgpu::util::DeviceExt;
 
 pub use context::GpuContext;
 use guide_buffers::GuideBuffers;
 pub use guide_buffers::{store_learned, GpuGuide};
+use params::{learning_rate_code, method_code, Params, GUIDE_HEMISPHERE, GUIDE_MIXTURE, GUIDE_VOLUME};
 use scene_buffers::SceneBuffers;
 
 use crate::environment::Sky;
 use crate::film::Film;
-use crate::integrator::{IntegratorSettings, Method, PathCounters};
+use crate::integrator::{IntegratorSettings, PathCounters};
 use crate::output::Image;
 use crate::render::{end_of_pass, pass_seed, PassFate, Progress, RenderSettings, RenderStatistics};
 use crate::scene::Scene;
-
-/// The uniform block of `tracer.wgsl` (its `Params`).
-#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
-#[repr(C)]
-struct Params {
-    width: u32,
-    height: u32,
-    pass_index: u32,
-    seed: u32,
-    max_depth: u32,
-    rr_depth: u32,
-    method: u32,
-    light_count: u32,
-    eye: [f32; 4],
-    forward: [f32; 4],
-    right: [f32; 4],
-    up: [f32; 4],
-    environment: [f32; 4],
-    scene: [f32; 4],
-    guide: [u32; 4],
-    guide_shape: [u32; 4],
-    guide_lookup: [f32; 4],
-    guide_rule: [f32; 4],
-    volume_grid: [u32; 4],
-    volume_low: [f32; 4],
-    volume_scale: [f32; 4],
-    sample_normal: [f32; 4],
-}
-
-impl Params {
-    /// The guide `kind` (GUIDE_*) and its grid of cells: cells per axis, low corner and
-    /// cells per unit length.
-    fn set_cell_grid(&mut self, kind: u32, [x, y, z]: [u32; 3], (low, inverse_cell_size): (Vec3, Vec3)) {
-        self.volume_grid = [x, y, z, kind];
-        self.volume_low = low.extend(0.0).to_array();
-        self.volume_scale = inverse_cell_size.extend(0.0).to_array();
-    }
-}
 
 /// The compute pipeline of `tracer.wgsl`'s entry point `name` (layout from the shader).
 fn entry_point(device: &wgpu::Device, module: &wgpu::ShaderModule, name: &str) -> wgpu::ComputePipeline {
@@ -119,20 +83,6 @@ fn entry_point(device: &wgpu::Device, module: &wgpu::ShaderModule, name: &str) -
         compilation_options: Default::default(),
         cache: None,
     })
-}
-
-/// `Params::volume_grid[3]`: which structure guides (the shader's GUIDE_*).
-const GUIDE_HEMISPHERE: u32 = 0;
-const GUIDE_VOLUME: u32 = 1;
-const GUIDE_MIXTURE: u32 = 2;
-
-fn learning_rate_code(rate: LearningRate) -> (f32, f32) {
-    match rate {
-        LearningRate::Exponential { alpha } => (0.0, alpha),
-        LearningRate::SimpleAverage => (1.0, 0.0),
-        LearningRate::RegionVisits => (2.0, 0.0),
-        LearningRate::Global { .. } => (1.0, 0.0),
-    }
 }
 
 /// A scene uploaded to a GPU, ready to render passes.
@@ -162,15 +112,6 @@ pub struct GpuTracer {
     counters_readback: wgpu::Buffer,
     width: u32,
     height: u32,
-}
-
-fn method_code(method: Method) -> u32 {
-    match method {
-        Method::Pt => 0,
-        Method::Nee => 1,
-        Method::Guided => 2,
-        Method::GuidedNee => 3,
-    }
 }
 
 /// What the GPU tracer cannot render in `scene`, if anything.
@@ -521,114 +462,6 @@ impl GpuTracer {
         mixture.rebuild_sampling();
         self.guide.write_mixture(&self.context.queue, mixture);
         Ok(())
-    }
-
-    /// Replaces `mixture` by the uploaded one as it learned on the GPU (every pass's
-    /// batch already absorbed on the host).
-    pub fn download_mixture(&self, mixture: &mut GaussianMixture) -> Result<(), String> {
-        let Some(learned) = self.mixture.as_ref() else {
-            return Err("no mixture was uploaded".into());
-        };
-        mixture.clone_from(learned);
-        Ok(())
-    }
-
-    /// Reads the learned Q and visit counts back into `volume` (replaced by the
-    /// uploaded volume as it learned and split on the GPU) and rebuilds its sampling.
-    pub fn download_volume(&self, volume: &mut IrradianceVolume) -> Result<(), String> {
-        let Some(learned) = self.volume.as_ref() else {
-            return Err("no irradiance volume was uploaded".into());
-        };
-        let mut learned = learned.clone();
-        let leaves = learned.leaf_count();
-        let entries = leaves * learned.patch_count();
-        let q = self.read_back(&self.guide.q)?;
-        let patch_visits = self.read_back(&self.guide.patch_visits)?;
-        let leaf_visits = self.read_back(&self.guide.region_visits)?;
-        guide_buffers::store_volume_tables(&learned, &q[..entries], &patch_visits[..entries], &leaf_visits[..leaves]);
-        learned.rebuild_sampling();
-        *volume = learned;
-        Ok(())
-    }
-
-    /// Reads the learned Q and visit counts back into `grid` (the grid this tracer was
-    /// built with) and rebuilds its sampling ([`store_learned`]).
-    pub fn download_guide(&self, grid: &mut HemisphereGrid) -> Result<(), String> {
-        if self.volume.is_some()
-            || self.mixture.is_some()
-            || self.guide_size.0 as usize != grid.probe_count()
-            || self.guide_size.1 as usize != grid.patch_count()
-        {
-            return Err("the grid does not match the one uploaded".into());
-        }
-        let q = self.read_back(&self.guide.q)?;
-        let patch_visits = self.read_back(&self.guide.patch_visits)?;
-        let probe_visits = self.read_back(&self.guide.region_visits)?;
-        store_learned(grid, &q, &patch_visits, &probe_visits);
-        Ok(())
-    }
-
-    /// Draws `count` directions from region `region`'s distribution on the GPU (unit
-    /// direction and the GPU's pdf per steradian each), for tests of the GPU sampler: a
-    /// probe of the grid, or a leaf of the volume folded about `normal`.
-    pub fn sample_guide(&mut self, region: u32, normal: Vec3, count: u32, seed: u32) -> Result<Vec<[f32; 4]>, String> {
-        if region >= self.guide_size.0 {
-            return Err(format!("region {region} of {}", self.guide_size.0));
-        }
-        let device = &self.context.device;
-        let samples = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("guide samples"),
-            size: count.max(1) as u64 * 16,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
-        let pipeline = entry_point(device, &self.module, "sample_guide");
-        let entries = [
-            wgpu::BindGroupEntry { binding: 0, resource: self.params_buffer.as_entire_binding() },
-            wgpu::BindGroupEntry { binding: 11, resource: self.guide.normals.as_entire_binding() },
-            wgpu::BindGroupEntry { binding: 16, resource: self.guide.cdf.as_entire_binding() },
-            wgpu::BindGroupEntry { binding: 20, resource: samples.as_entire_binding() },
-        ];
-        let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("sample_guide"),
-            layout: &pipeline.get_bind_group_layout(0),
-            entries: &entries,
-        });
-        self.params.pass_index = region;
-        self.params.seed = seed;
-        self.params.sample_normal = normal.extend(0.0).to_array();
-        self.context.queue.write_buffer(&self.params_buffer, 0, bytemuck::bytes_of(&self.params));
-        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("sample") });
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
-            pass.set_pipeline(&pipeline);
-            pass.set_bind_group(0, &group, &[]);
-            pass.dispatch_workgroups(count.div_ceil(64), 1, 1);
-        }
-        self.context.queue.submit([encoder.finish()]);
-        let words = self.read_back(&samples)?;
-        let sample = |c: &[u32]| [c[0], c[1], c[2], c[3]].map(f32::from_bits);
-        Ok(words.chunks_exact(4).map(sample).take(count as usize).collect())
-    }
-
-    /// Copies a storage buffer to the host.
-    fn read_back(&self, buffer: &wgpu::Buffer) -> Result<Vec<u32>, String> {
-        let device = &self.context.device;
-        let staging = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("guide readback"),
-            size: buffer.size(),
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("readback") });
-        encoder.copy_buffer_to_buffer(buffer, 0, &staging, 0, buffer.size());
-        self.context.queue.submit([encoder.finish()]);
-        self.context.read(&staging)
-    }
-
-    /// The adapter's name and backend, for reports.
-    pub fn adapter(&self) -> String {
-        self.context.describe()
     }
 }
 
