@@ -16,26 +16,8 @@ use crate::integrator::{
 };
 use crate::output::Image;
 use crate::scene::Scene;
+pub use crate::schedule::Budget;
 use crate::schedule::{Schedule, Step, Training};
-
-/// When to stop.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Budget {
-    /// After this many samples per pixel.
-    SamplesPerPixel(u32),
-    /// After the first pass that ends at or past this many seconds of rendering.
-    Seconds(f64),
-}
-
-impl Budget {
-    /// Whether a render that has done `passes` passes in `seconds` stops.
-    pub fn reached(&self, passes: u32, seconds: f64) -> bool {
-        match *self {
-            Budget::SamplesPerPixel(spp) => passes >= spp,
-            Budget::Seconds(limit) => seconds >= limit,
-        }
-    }
-}
 
 /// The seed of pass `pass` of a render seeded `seed`.
 pub fn pass_seed(seed: u64, pass: u32) -> u64 {

@@ -3,7 +3,24 @@
 //! boundary, and then a final image rendered with the guide frozen (`iterative`,
 //! Müller et al. 2017, §5).
 
-use crate::render::Budget;
+/// When to stop.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Budget {
+    /// After this many samples per pixel.
+    SamplesPerPixel(u32),
+    /// After the first pass that ends at or past this many seconds of rendering.
+    Seconds(f64),
+}
+
+impl Budget {
+    /// Whether a render that has done `passes` passes in `seconds` stops.
+    pub fn reached(&self, passes: u32, seconds: f64) -> bool {
+        match *self {
+            Budget::SamplesPerPixel(spp) => passes >= spp,
+            Budget::Seconds(limit) => seconds >= limit,
+        }
+    }
+}
 
 /// The training schedule of a guided render.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -15,7 +15,7 @@ use std::path::Path;
 
 use glam::{Mat4, Vec3};
 
-use crate::scene::{CameraDescription, SceneDescription, SceneError};
+use crate::scene::{CameraDescription, Scene, SceneDescription, SceneError};
 
 /// A scene read from a foreign format, with what was skipped or approximated.
 #[derive(Clone, Debug)]
@@ -51,6 +51,28 @@ impl SceneFormat {
     }
 }
 
+// `Scene::load` dispatches to the readers here, so it lives beside them: the scene
+// module builds scenes from descriptions and knows no file format but its own JSON.
+impl Scene {
+    /// Reads and checks a scene file: the project's JSON, or by its extension a pbrt-v3
+    /// (`.pbrt`) or Mitsuba (`.xml`) scene. Every error names the file and where in it.
+    pub fn load(path: &Path) -> Result<Scene, SceneError> {
+        match SceneFormat::of(path)? {
+            SceneFormat::Json => {
+                let text = std::fs::read_to_string(path)
+                    .map_err(|e| SceneError::new(path, "", format!("cannot read: {e}")))?;
+                Self::from_json(path, &text)
+            }
+            _ => {
+                let imported = import(path)?;
+                let mut scene = Self::from_description(path, imported.description)?;
+                scene.warnings.splice(0..0, imported.warnings);
+                Ok(scene)
+            }
+        }
+    }
+}
+
 /// Reads a pbrt or Mitsuba file.
 pub fn import(path: &Path) -> Result<Imported, SceneError> {
     let text = std::fs::read_to_string(path).map_err(|e| SceneError::new(path, "", format!("cannot read: {e}")))?;
@@ -66,7 +88,7 @@ pub fn import(path: &Path) -> Result<Imported, SceneError> {
 /// `output`'s folder. Returns what the reader skipped or approximated.
 pub fn convert(input: &Path, output: &Path) -> Result<Vec<String>, SceneError> {
     let Imported { mut description, warnings } = import(input)?;
-    crate::scene::Scene::from_description(input, description.clone())?;
+    Scene::from_description(input, description.clone())?;
     let from = input.parent().unwrap_or(Path::new("."));
     let to = output.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
     let rebase = |file: &mut String| {

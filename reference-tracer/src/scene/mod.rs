@@ -67,24 +67,6 @@ pub struct Scene {
 }
 
 impl Scene {
-    /// Reads and checks a scene file: the project's JSON, or by its extension a pbrt-v3
-    /// (`.pbrt`) or Mitsuba (`.xml`) scene. Every error names the file and where in it.
-    pub fn load(path: &Path) -> Result<Scene, SceneError> {
-        match crate::import::SceneFormat::of(path)? {
-            crate::import::SceneFormat::Json => {
-                let text = std::fs::read_to_string(path)
-                    .map_err(|e| SceneError::new(path, "", format!("cannot read: {e}")))?;
-                Self::from_json(path, &text)
-            }
-            _ => {
-                let imported = crate::import::import(path)?;
-                let mut scene = Self::from_description(path, imported.description)?;
-                scene.warnings.splice(0..0, imported.warnings);
-                Ok(scene)
-            }
-        }
-    }
-
     /// Builds a scene from the JSON `text` of the file `path` (named in errors; relative
     /// file names resolve against its folder).
     pub fn from_json(path: &Path, text: &str) -> Result<Scene, SceneError> {
