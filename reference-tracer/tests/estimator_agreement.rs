@@ -525,3 +525,33 @@ fn unguided_renders_are_deterministic_for_a_seed() {
         assert_ne!(first, other_seed, "{}", method.name());
     }
 }
+
+/// A checksum of an image's bits (FNV-1a over every pixel's f32s).
+fn image_checksum(image: &reference_tracer::output::Image) -> u64 {
+    image.pixels.iter().flat_map(|p| p.to_array()).fold(0xcbf2_9ce4_8422_2325, |hash, value| {
+        value.to_bits().to_le_bytes().iter().fold(hash, |h, &b| (h ^ b as u64).wrapping_mul(0x0100_0000_01b3))
+    })
+}
+
+/// Unguided renders are bit-identical to what they were when these checksums were
+/// recorded: a restructuring of the tracer must leave them alone, so a change here is a
+/// change of behaviour (update the numbers only for a change of the estimators that is
+/// meant, and say so in its commit).
+#[test]
+fn unguided_renders_match_their_recorded_checksums() {
+    let cases = [
+        ("cornell", 16, 16, Method::Pt, 0x42d8_25e6_aa7a_5663),
+        ("cornell", 16, 16, Method::Nee, 0xded1_1cc1_7751_4b56),
+        ("door", 16, 12, Method::Pt, 0xd3f7_ec18_a0f8_5725),
+        ("door", 16, 12, Method::Nee, 0x023f_fab1_6ed2_fcc0),
+    ];
+    let mut found = Vec::new();
+    for (name, width, height, method, expected) in cases {
+        let scene = support::repository_scene(name, width, height);
+        let (image, _) = support::render_scheduled(&scene, settings(method), None, 4, 5, Schedule::Online);
+        found.push((name, method.name(), image_checksum(&image), expected));
+    }
+    for (name, method, checksum, expected) in &found {
+        assert_eq!(checksum, expected, "{name} {method}: all checksums {found:x?}");
+    }
+}
