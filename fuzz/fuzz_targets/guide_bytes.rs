@@ -1,7 +1,8 @@
 //! Serialized guides, raw or damaged: decoding either fails with an error or yields a
 //! guide that validates, round-trips canonically and samples with finite, positive
-//! pdfs. Mode bits 3–4 pick the structure (hemisphere grid, irradiance volume, mixture,
-//! spatial × directional tree);
+//! pdfs. Mode bits 3–5 pick the structure (hemisphere grid, irradiance volume, mixture,
+//! spatial × directional tree, and the light guide, whose decoded selections must be
+//! probabilities);
 //! bit 0 picks raw bytes or a real guide's bytes with edits; bit 1 truncates; bit 2
 //! reseals the checksum so the edits reach the field checks behind it.
 #![no_main]
@@ -9,7 +10,8 @@
 use glam::{Vec2, Vec3};
 use guiding_core::{
     reseal_checksum, GaussianMixture, GaussianMixtureSettings, Guide, HemisphereGrid, HemisphereGridSettings,
-    HemisphereMapping, IrradianceVolume, IrradianceVolumeSettings, MixtureRegion, PatchLayout, ProbeId,
+    HemisphereMapping, IrradianceVolume, IrradianceVolumeSettings, LightCell, LightGuide, LightGuideSettings,
+    MixtureRegion, PatchLayout, ProbeId,
     SpatialDirectionalTree, SpatialDirectionalTreeSettings, TreeRegion, Triangle, VolumeRegion,
 };
 use libfuzzer_sys::fuzz_target;
@@ -143,12 +145,51 @@ fn check<G: FuzzedGuide>(mode: u8, rest: &[u8]) {
     }
 }
 
+/// The light guide's bytes, raw or a small learned guide's with edits (as for
+/// [`check`]); a guide that decodes re-encodes canonically and selects by probabilities.
+fn check_light_guide(mode: u8, rest: &[u8]) {
+    let bytes = if mode & 1 == 0 {
+        rest.to_vec()
+    } else {
+        let (parameters, edits) = rest.split_at(rest.len().min(3));
+        let p = |i: usize| parameters.get(i).copied().unwrap_or(0) as u32;
+        let settings = LightGuideSettings { resolution: Some([1 + p(0) % 3, 1, 1]), ..Default::default() };
+        let powers: Vec<f32> = (0..1 + p(1) % 5).map(|l| 1.0 + l as f32).collect();
+        let mut guide = LightGuide::new(Vec3::ZERO, Vec3::ONE, &powers, settings).expect("a valid small light guide");
+        let cell = guide.cell(Vec3::splat(0.3)).expect("inside");
+        guide.update(cell, 0, 3.0, true);
+        guide.rebuild();
+        let mut bytes = guide.to_bytes();
+        for edit in edits.chunks_exact(3) {
+            let position = u16::from_le_bytes([edit[0], edit[1]]) as usize % bytes.len();
+            bytes[position] = edit[2];
+        }
+        if mode & 2 != 0 {
+            let keep = bytes.len() - (p(2) as usize * 7) % bytes.len();
+            bytes.truncate(keep);
+        }
+        if mode & 4 != 0 {
+            reseal_checksum(&mut bytes);
+        }
+        bytes
+    };
+    let Ok(guide) = LightGuide::from_bytes(&bytes) else { return };
+    let encoded = guide.to_bytes();
+    assert_eq!(LightGuide::from_bytes(&encoded).expect("a re-encoded guide decodes").to_bytes(), encoded);
+    for cell in (0..guide.cell_count() as u32).map(LightCell) {
+        let choice = guide.select(cell, 0.61);
+        assert!(choice.probability > 0.0 && choice.probability <= 1.0, "{cell:?}: {choice:?}");
+        assert_eq!(choice.probability, guide.probability(cell, choice.light));
+    }
+}
+
 fuzz_target!(|data: &[u8]| {
     let Some((&mode, rest)) = data.split_first() else { return };
-    match (mode >> 3) % 4 {
+    match (mode >> 3) % 5 {
         0 => check::<HemisphereGrid>(mode, rest),
         1 => check::<IrradianceVolume>(mode, rest),
         2 => check::<GaussianMixture>(mode, rest),
-        _ => check::<SpatialDirectionalTree>(mode, rest),
+        3 => check::<SpatialDirectionalTree>(mode, rest),
+        _ => check_light_guide(mode, rest),
     }
 });

@@ -52,18 +52,20 @@ pub struct LightChoice {
 /// ```
 #[derive(Debug)]
 pub struct LightGuide {
-    settings: LightGuideSettings,
+    pub(super) settings: LightGuideSettings,
+    /// The box it was built over (scene units).
+    pub(super) bounds: (Vec3, Vec3),
     grid: CellGrid,
-    lights: usize,
+    pub(super) lights: usize,
     /// Normalised power of each light.
-    power_share: Vec<f32>,
+    pub(super) power_share: Vec<f32>,
     /// Per (cell, light): V (f32 bits), updates taken, shadow rays shot.
-    values: Vec<AtomicU32>,
-    updates: Vec<AtomicU32>,
-    shots: Vec<AtomicU32>,
+    pub(super) values: Vec<AtomicU32>,
+    pub(super) updates: Vec<AtomicU32>,
+    pub(super) shots: Vec<AtomicU32>,
     /// Per (cell, light): the selection CDF of the last rebuild.
     cdf: Vec<f32>,
-    rejected: AtomicUsize,
+    pub(super) rejected: AtomicUsize,
 }
 
 impl LightGuide {
@@ -88,6 +90,7 @@ impl LightGuide {
             powers.iter().map(|&p| if total > 0.0 { (p as f64 / total) as f32 } else { 1.0 / lights as f32 }).collect();
         let mut guide = Self {
             settings,
+            bounds: (low, high),
             grid,
             lights,
             power_share,
@@ -215,6 +218,19 @@ impl LightGuide {
     /// The settings it was built with.
     pub fn settings(&self) -> &LightGuideSettings {
         &self.settings
+    }
+
+    /// The guide as bytes (versioned, checksummed): what it learned, its settings and
+    /// bounds; [`from_bytes`](Self::from_bytes) reads them back. Call between passes.
+    pub fn to_bytes(&self) -> Vec<u8> {
+        super::serialize::encode(self)
+    }
+
+    /// Reads a guide written by [`to_bytes`](Self::to_bytes), checking every field
+    /// (damaged or foreign bytes give an error naming what is wrong, never a panic);
+    /// its selection CDFs are rebuilt from what it learned.
+    pub fn from_bytes(bytes: &[u8]) -> Result<Self, Error> {
+        super::serialize::decode(bytes)
     }
 }
 
