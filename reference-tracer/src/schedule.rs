@@ -94,6 +94,16 @@ impl Training {
         self.active
     }
 
+    /// Training passes so far.
+    pub fn passes(&self) -> u32 {
+        self.total
+    }
+
+    /// Stops training: every pass from the next one on renders frozen.
+    pub fn stop(&mut self) {
+        self.active = false;
+    }
+
     /// Accounts for a pass that ended `seconds` into the render.
     ///
     /// An iteration that took d seconds is followed by one of ≈ 2d. Training goes on
@@ -145,6 +155,18 @@ mod tests {
         assert_eq!(refits, [1, 3, 7, 15]);
         assert_eq!(steps.last(), Some(&Step::Refit { last: true }));
         assert_eq!(training.after_pass(t + 1.0, Budget::Seconds(60.0)), Step::Render);
+    }
+
+    #[test]
+    fn a_stopped_schedule_renders_from_the_next_pass_on() {
+        let mut training = Training::new(true);
+        assert_eq!(training.after_pass(1.0, Budget::Seconds(60.0)), Step::Refit { last: false });
+        assert_eq!(training.after_pass(2.0, Budget::Seconds(60.0)), Step::Train);
+        assert_eq!(training.passes(), 2);
+        training.stop();
+        assert!(!training.learning());
+        assert_eq!(training.after_pass(3.0, Budget::Seconds(60.0)), Step::Render);
+        assert_eq!(training.passes(), 2);
     }
 
     #[test]

@@ -86,6 +86,7 @@ pub fn statistics_json(
         "height": image.height,
         "passes": statistics.passes,
         "training_passes": statistics.training_passes,
+        "training_stopped_idle": statistics.training_stopped_idle,
         "training_seconds": statistics.training_seconds,
         "kept_paths_per_second": statistics.kept_paths_per_second(),
         "spp": statistics.passes,

@@ -126,9 +126,10 @@ pub(super) fn run_render(args: &RenderArgs) -> Result<(), String> {
     );
     if statistics.training_passes > 0 {
         eprintln!(
-            "training: {} passes in {:.2} s; the kept passes ran at {:.0} paths/s",
+            "training: {} passes in {:.2} s{}; the kept passes ran at {:.0} paths/s",
             statistics.training_passes,
             statistics.training_seconds,
+            if statistics.training_stopped_idle { " (stopped early: guiding idled)" } else { "" },
             statistics.kept_paths_per_second()
         );
     }
