@@ -69,21 +69,23 @@ pub struct EnvSample {
 /// ```
 #[derive(Debug)]
 pub struct EnvTileGuide {
-    settings: EnvTileGuideSettings,
+    pub(super) settings: EnvTileGuideSettings,
+    /// The box it was built over (scene units).
+    pub(super) bounds: (Vec3, Vec3),
     grid: CellGrid,
-    tiles: EnvironmentTiles,
-    sun: Option<SunDisk>,
+    pub(super) tiles: EnvironmentTiles,
+    pub(super) sun: Option<SunDisk>,
     lobes: usize,
     /// Per lobe: its share of the total power.
-    power_share: Vec<f32>,
+    pub(super) power_share: Vec<f32>,
     /// Lobes with power > 0 (the uniform share goes to these).
     lit_lobes: usize,
     /// Per (cell, lobe): V (f32 bits) and the updates it took.
-    values: Vec<AtomicU32>,
-    updates: Vec<AtomicU32>,
+    pub(super) values: Vec<AtomicU32>,
+    pub(super) updates: Vec<AtomicU32>,
     /// Per (cell, lobe): the lobe CDF of the last rebuild.
     cdf: Vec<f32>,
-    rejected: AtomicUsize,
+    pub(super) rejected: AtomicUsize,
 }
 
 impl EnvTileGuide {
@@ -108,6 +110,7 @@ impl EnvTileGuide {
         let entries = grid.cell_count() * lobes;
         let mut guide = Self {
             settings,
+            bounds: (low, high),
             grid,
             tiles,
             sun,
@@ -237,6 +240,21 @@ impl EnvTileGuide {
     /// The settings it was built with.
     pub fn settings(&self) -> &EnvTileGuideSettings {
         &self.settings
+    }
+
+    /// What the guide learned as bytes (versioned, checksummed), with its settings,
+    /// bounds and a fingerprint of the environment (map size, tiles, each lobe's power);
+    /// the environment itself is the scene's and is not stored. Call between passes.
+    pub fn to_bytes(&self) -> Vec<u8> {
+        super::serialize::encode(self)
+    }
+
+    /// Reads a guide written by [`to_bytes`](Self::to_bytes) for the environment of
+    /// `tiles` and `sun`, which must be the one it learned (else
+    /// [`Error::Incompatible`] naming the `environment`). Every field is checked
+    /// (damaged bytes give an error, never a panic); the lobe CDFs are rebuilt.
+    pub fn from_bytes(bytes: &[u8], tiles: EnvironmentTiles, sun: Option<SunDisk>) -> Result<Self, Error> {
+        super::serialize::decode(bytes, tiles, sun)
     }
 }
 

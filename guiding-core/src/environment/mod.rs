@@ -5,11 +5,13 @@
 
 mod guide;
 pub mod lat_long;
+mod serialize;
 mod settings;
 mod sun;
 mod tiles;
 
 pub use guide::{EnvCell, EnvDistribution, EnvLobe, EnvSample, EnvTileGuide};
+pub use serialize::{FORMAT_VERSION as ENV_TILE_GUIDE_FORMAT_VERSION, STRUCTURE_TAG as ENV_TILE_GUIDE_TAG};
 pub use settings::EnvTileGuideSettings;
 pub use sun::SunDisk;
 pub use tiles::{EnvironmentTiles, MAX_TEXELS};
