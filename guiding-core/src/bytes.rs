@@ -203,6 +203,25 @@ impl<'a> ByteReader<'a> {
         Ok(UpdateRule { learning_rate, integral })
     }
 
+    /// A 0/1 word as a flag; anything else is an invalid `field`.
+    pub(crate) fn flag(&mut self, field: &'static str) -> Result<bool, Error> {
+        match self.u32()? {
+            0 => Ok(false),
+            1 => Ok(true),
+            _ => Err(invalid_field(field, 0, "0 or 1")),
+        }
+    }
+
+    /// Fails unless exactly `needed` bytes are left: checked before the tables they hold
+    /// are allocated, so a damaged count cannot demand memory.
+    pub(crate) fn expect_remaining(&self, needed: usize) -> Result<(), DecodeError> {
+        match self.remaining() {
+            left if left < needed => Err(DecodeError::Truncated { offset: self.offset, needed, available: left }),
+            left if left > needed => Err(DecodeError::TrailingBytes { count: left - needed }),
+            _ => Ok(()),
+        }
+    }
+
     /// Fails unless every byte was read.
     pub(crate) fn finish(self) -> Result<(), DecodeError> {
         match self.remaining() {

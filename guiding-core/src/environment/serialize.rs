@@ -18,7 +18,7 @@ use alloc::vec::Vec;
 use core::sync::atomic::Ordering;
 
 use crate::bytes::{invalid_field, open_guide_bytes, ByteReader, ByteWriter};
-use crate::error::{DecodeError, Error};
+use crate::error::Error;
 
 use super::guide::EnvTileGuide;
 use super::settings::EnvTileGuideSettings;
@@ -62,17 +62,9 @@ pub(crate) fn encode(guide: &EnvTileGuide) -> Vec<u8> {
     w.finish_with_checksum()
 }
 
-fn read_flag(r: &mut ByteReader<'_>, field: &'static str) -> Result<bool, Error> {
-    match r.u32()? {
-        0 => Ok(false),
-        1 => Ok(true),
-        _ => Err(invalid_field(field, 0, "0 or 1")),
-    }
-}
-
 fn read_settings(r: &mut ByteReader<'_>) -> Result<EnvTileGuideSettings, Error> {
     let budget_bytes = usize::try_from(r.u64()?).map_err(|_| invalid_field("budget_bytes", 0, "addressable"))?;
-    let given = read_flag(r, "resolution_given")?;
+    let given = r.flag("resolution_given")?;
     let resolution = [r.u32()?, r.u32()?, r.u32()?];
     let tiles = [r.u32()?, r.u32()?];
     let (power_mix, uniform_mix) = (r.f32()?, r.f32()?);
@@ -86,7 +78,7 @@ pub(crate) fn decode(bytes: &[u8], tiles: EnvironmentTiles, sun: Option<SunDisk>
     let mut r = open_guide_bytes(bytes, FORMAT_VERSION, STRUCTURE_TAG)?;
     let settings = read_settings(&mut r)?;
     let (width, height) = (r.u32()? as usize, r.u32()? as usize);
-    let has_sun = read_flag(&mut r, "sun")?;
+    let has_sun = r.flag("sun")?;
     let lobes = r.u32()? as usize;
     let incompatible = Err(Error::Incompatible { what: "environment" });
     // The environment's own lobe count bounds what is read next.
@@ -112,14 +104,7 @@ pub(crate) fn decode(bytes: &[u8], tiles: EnvironmentTiles, sun: Option<SunDisk>
     }
     let entries = guide.values.len();
     let needed = entries * ENTRY_BYTES;
-    if r.remaining() != needed {
-        return Err(if r.remaining() < needed {
-            DecodeError::Truncated { offset: r.offset(), needed, available: r.remaining() }
-        } else {
-            DecodeError::TrailingBytes { count: r.remaining() - needed }
-        }
-        .into());
-    }
+    r.expect_remaining(needed)?;
     for i in 0..entries {
         let (value, updates) = (r.u32()?, r.u32()?);
         let v = f32::from_bits(value);
@@ -137,6 +122,7 @@ pub(crate) fn decode(bytes: &[u8], tiles: EnvironmentTiles, sun: Option<SunDisk>
 
 #[cfg(test)]
 mod tests {
+    use crate::error::DecodeError;
     use glam::{Vec2, Vec3};
 
     use super::*;

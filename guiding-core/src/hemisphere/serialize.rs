@@ -148,14 +148,7 @@ pub(crate) fn decode(bytes: &[u8]) -> Result<HemisphereGrid, Error> {
         .checked_mul(12)
         .and_then(|bytes| bytes.checked_add(probes * 28))
         .ok_or_else(|| invalid_field("probe_count", 0, "addressable"))?;
-    if r.remaining() != needed {
-        return Err(if r.remaining() < needed {
-            DecodeError::Truncated { offset: r.offset(), needed, available: r.remaining() }
-        } else {
-            DecodeError::TrailingBytes { count: r.remaining() - needed }
-        }
-        .into());
-    }
+    r.expect_remaining(needed)?;
     let positions = read_vec3s(&mut r, probes)?;
     if let Some(i) = positions.iter().position(|p| !p.is_finite()) {
         return Err(invalid_field("positions", i, "finite"));

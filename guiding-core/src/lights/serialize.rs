@@ -119,14 +119,7 @@ pub(crate) fn decode(bytes: &[u8]) -> Result<LightGuide, Error> {
     }
     let entries = guide.values.len();
     let needed = entries * ENTRY_BYTES;
-    if r.remaining() != needed {
-        return Err(if r.remaining() < needed {
-            DecodeError::Truncated { offset: r.offset(), needed, available: r.remaining() }
-        } else {
-            DecodeError::TrailingBytes { count: r.remaining() - needed }
-        }
-        .into());
-    }
+    r.expect_remaining(needed)?;
     for i in 0..entries {
         let (value, updates, shots) = (r.u32()?, r.u32()?, r.u32()?);
         let v = f32::from_bits(value);

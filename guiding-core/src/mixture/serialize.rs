@@ -20,7 +20,7 @@ use core::sync::atomic::Ordering;
 use glam::Vec3;
 
 use crate::bytes::{invalid_field, open_guide_bytes, ByteReader, ByteWriter};
-use crate::error::{DecodeError, Error};
+use crate::error::Error;
 
 use super::guide::{check_mixture, GaussianMixture};
 use super::settings::{batch_stride, GaussianMixtureSettings};
@@ -71,20 +71,12 @@ pub(crate) fn encode(guide: &GaussianMixture) -> Vec<u8> {
     w.finish_with_checksum()
 }
 
-fn read_flag(r: &mut ByteReader<'_>, field: &'static str) -> Result<bool, Error> {
-    match r.u32()? {
-        0 => Ok(false),
-        1 => Ok(true),
-        _ => Err(invalid_field(field, 0, "0 or 1")),
-    }
-}
-
 fn read_settings(r: &mut ByteReader<'_>) -> Result<GaussianMixtureSettings, Error> {
     let budget_bytes = usize::try_from(r.u64()?).map_err(|_| invalid_field("budget_bytes", 0, "addressable"))?;
-    let given = read_flag(r, "resolution_given")?;
+    let given = r.flag("resolution_given")?;
     let resolution = [r.u32()?, r.u32()?, r.u32()?];
     let lobes = r.u32()? as usize;
-    let split_by_normal = read_flag(r, "split_by_normal")?;
+    let split_by_normal = r.flag("split_by_normal")?;
     let initial_q = r.f32()?;
     let uniform_mix = r.f32()?;
     let update_rule = r.update_rule()?;
@@ -145,14 +137,7 @@ pub(crate) fn decode(bytes: &[u8]) -> Result<GaussianMixture, Error> {
     let stride = batch_stride(settings.lobes);
     // Check the length before allocating, so a damaged count cannot demand memory.
     let needed = regions * (1 + settings.lobes * WORDS_PER_LOBE + stride) * 4;
-    if r.remaining() != needed {
-        return Err(if r.remaining() < needed {
-            DecodeError::Truncated { offset: r.offset(), needed, available: r.remaining() }
-        } else {
-            DecodeError::TrailingBytes { count: r.remaining() - needed }
-        }
-        .into());
-    }
+    r.expect_remaining(needed)?;
     let guide = GaussianMixture::new(low, high, settings)?;
     let mut mixtures = Vec::with_capacity(regions);
     let mut batch = Vec::with_capacity(regions * stride);
@@ -173,6 +158,7 @@ pub(crate) fn decode(bytes: &[u8]) -> Result<GaussianMixture, Error> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::error::DecodeError;
     use crate::guide::Guide;
     use crate::low_discrepancy::Pcg32;
 

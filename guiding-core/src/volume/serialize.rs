@@ -167,14 +167,7 @@ pub(crate) fn decode(bytes: &[u8]) -> Result<IrradianceVolume, Error> {
         .and_then(|words| leaf_count.checked_mul(3 * patches + 9).and_then(|table| table.checked_add(words)))
         .and_then(|words| words.checked_mul(4))
         .ok_or_else(|| invalid_field("node_count", 0, "addressable"))?;
-    if r.remaining() != needed {
-        return Err(if r.remaining() < needed {
-            DecodeError::Truncated { offset: r.offset(), needed, available: r.remaining() }
-        } else {
-            DecodeError::TrailingBytes { count: r.remaining() - needed }
-        }
-        .into());
-    }
+    r.expect_remaining(needed)?;
     let nodes = read_u32s(&mut r, node_count)?;
     check_tree(&nodes, grid.cell_count(), leaf_count)?;
     let leaf_visits = read_u32s(&mut r, leaf_count)?;
