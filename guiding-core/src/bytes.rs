@@ -143,10 +143,6 @@ impl<'a> ByteReader<'a> {
         Ok(Self::new(body))
     }
 
-    pub(crate) fn offset(&self) -> usize {
-        self.offset
-    }
-
     pub(crate) fn remaining(&self) -> usize {
         self.bytes.len() - self.offset
     }
@@ -204,6 +200,7 @@ impl<'a> ByteReader<'a> {
     }
 
     /// A 0/1 word as a flag; anything else is an invalid `field`.
+    #[cfg_attr(not(any(feature = "mixture", feature = "env", feature = "lights")), allow(dead_code))]
     pub(crate) fn flag(&mut self, field: &'static str) -> Result<bool, Error> {
         match self.u32()? {
             0 => Ok(false),

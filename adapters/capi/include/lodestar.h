@@ -154,10 +154,37 @@ typedef uint32_t LodestarIntegralEstimator;
 #endif // __STDC_VERSION__ >= 202311L
 #endif // __cplusplus
 
+// How a light guide's V learns (`LodestarLightGuideConfig.rule`).
+enum LodestarLightRule
+#if defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+  : uint32_t
+#endif // defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+ {
+  // Eq. (3): unoccluded shadow rays blend ‖C‖∞ into V, occluded ones leave it alone.
+  LODESTAR_LIGHT_RULE_UNOCCLUDED_AVERAGE = 0,
+  // Eq. (3) with occluded rays blended in as zero: V is the mean contribution.
+  LODESTAR_LIGHT_RULE_MEAN_CONTRIBUTION = 1,
+  // V = (unoccluded rays + 1) / (rays + 2) times the light's power share.
+  LODESTAR_LIGHT_RULE_VISIBILITY_RATIO = 2,
+};
+#ifndef __cplusplus
+#if __STDC_VERSION__ >= 202311L
+typedef enum LodestarLightRule LodestarLightRule;
+#else
+typedef uint32_t LodestarLightRule;
+#endif // __STDC_VERSION__ >= 202311L
+#endif // __cplusplus
+
 // An opaque guide: create with `lodestar_guide_create` or
 // `lodestar_guide_load`, free with
 // `lodestar_guide_release`.
 typedef struct LodestarGuide LodestarGuide;
+
+// An opaque light guide. Create with `lodestar_light_guide_create` (or load), free with
+// `lodestar_light_guide_release`. `cell`, `select`, `probability`, `update`, `save` and
+// `serialized_size` are lock-free and may run from any number of threads at once;
+// `rebuild` and `release` need the guide to themselves.
+typedef struct LodestarLightGuide LodestarLightGuide;
 
 // An opaque path recorder: one per thread (its calls are not thread-safe; each thread
 // records its own path). Create with `lodestar_path_recorder_create`, free with
@@ -252,6 +279,23 @@ typedef struct LodestarGuideStats {
   // Learning epochs completed (calls to `lodestar_guide_rebuild`).
   uint32_t epochs;
 } LodestarGuideStats;
+
+// Everything that shapes a light guide. Fill it with
+// `lodestar_light_guide_config_default`, then change what you need.
+typedef struct LodestarLightGuideConfig {
+  // `sizeof(LodestarLightGuideConfig)`: set by the default call.
+  uint32_t struct_size;
+  // One of `LodestarLightRule`.
+  uint32_t rule;
+  // Memory budget for the per-cell tables, bytes; sets the grid unless `resolution` does.
+  uint64_t budget_bytes;
+  // Cells along x, y and z; all three 0 fills the budget with near-cubic cells.
+  uint32_t resolution[3];
+  // Share of each cell's selection probability in proportion to light power, [0, 1].
+  float power_mix;
+  // Share spread uniformly over all lights, (0, 1]: keeps every light selectable.
+  float uniform_mix;
+} LodestarLightGuideConfig;
 
 #ifdef __cplusplus
 extern "C" {
@@ -387,6 +431,108 @@ enum LodestarStatus lodestar_guide_stats(const struct LodestarGuide *guide,
 // # Safety
 // `guide` must be NULL or a live handle.
 enum LodestarStatus lodestar_guide_validate(const struct LodestarGuide *guide);
+
+// Fills `out_config` with guiding-core's light guide defaults (1 MiB, mean
+// contribution, power share 0.2, uniform share 0.01).
+//
+// # Safety
+// `out_config` must be NULL or writable for a `LodestarLightGuideConfig`.
+enum LodestarStatus lodestar_light_guide_config_default(struct LodestarLightGuideConfig *out_config);
+
+// Creates a light guide over the box `low`..`high` (scene units) for `light_count`
+// lights of the given `powers` (any consistent unit, e.g. luminance × area; finite,
+// ≥ 0; all zero means equal); `*out_guide` owns it.
+//
+// # Safety
+// `config` must be NULL or readable; `powers` NULL or readable for `light_count`
+// floats; `out_guide` NULL or writable.
+enum LodestarStatus lodestar_light_guide_create(const struct LodestarLightGuideConfig *config,
+                                                struct LodestarVec3 low,
+                                                struct LodestarVec3 high,
+                                                const float *powers,
+                                                size_t light_count,
+                                                struct LodestarLightGuide **out_guide);
+
+// Frees a light guide; the handle must not be used afterwards.
+//
+// # Safety
+// `guide` must be NULL or a live handle no other call is using.
+enum LodestarStatus lodestar_light_guide_release(struct LodestarLightGuide *guide);
+
+// The cell holding `point` (points outside the bounds use the nearest cell).
+//
+// # Safety
+// `guide` must be NULL or a live handle; `out_cell` NULL or writable.
+enum LodestarStatus lodestar_light_guide_cell(const struct LodestarLightGuide *guide,
+                                              struct LodestarVec3 position,
+                                              uint32_t *out_cell);
+
+// Picks a light for a shadow ray from `cell` with the uniform number `u` in [0, 1]:
+// its index and the probability it had (exactly what `probability` reports).
+//
+// # Safety
+// `guide` must be NULL or a live handle; the outputs NULL or writable.
+enum LodestarStatus lodestar_light_guide_select(const struct LodestarLightGuide *guide,
+                                                uint32_t cell,
+                                                float u,
+                                                uint32_t *out_light,
+                                                float *out_probability);
+
+// The probability with which `select` picks `light` from `cell` (what MIS needs for
+// emission found by scattering).
+//
+// # Safety
+// `guide` must be NULL or a live handle; `out_probability` NULL or writable.
+enum LodestarStatus lodestar_light_guide_probability(const struct LodestarLightGuide *guide,
+                                                     uint32_t cell,
+                                                     uint32_t light,
+                                                     float *out_probability);
+
+// Learns from one shadow ray from `cell` to `light`: `unoccluded` (0 or 1) says whether
+// it arrived, `contribution` is ‖C‖∞ of its unshadowed contribution (radiance over the
+// light's whole area: divided by the pdf of the point chosen on it). A NaN or infinite
+// contribution returns `LODESTAR_STATUS_NON_FINITE_ARGUMENT`, a negative one
+// `LODESTAR_STATUS_INVALID_ARGUMENT`; neither is learned, both are counted.
+// Thread-safe (lock-free).
+//
+// # Safety
+// `guide` must be NULL or a live handle; `out_outcome` NULL or writable.
+enum LodestarStatus lodestar_light_guide_update(const struct LodestarLightGuide *guide,
+                                                uint32_t cell,
+                                                uint32_t light,
+                                                float contribution,
+                                                uint32_t unoccluded,
+                                                enum LodestarUpdateOutcome *out_outcome);
+
+// Rebuilds every cell's selection from what it learned. Call between passes: no other
+// call on this guide may be in flight.
+//
+// # Safety
+// `guide` must be NULL or a live handle no other call is using.
+enum LodestarStatus lodestar_light_guide_rebuild(struct LodestarLightGuide *guide);
+
+// Writes the guide (versioned, checksummed) to `buffer` and its length to
+// `*out_size`; with `buffer` NULL and `capacity` 0 only the size is written. When
+// `capacity` is too small nothing is written to `buffer`, `*out_size` receives the
+// size needed and the call returns `LODESTAR_STATUS_BUFFER_TOO_SMALL`.
+//
+// # Safety
+// `guide` must be NULL or a live handle; `buffer` NULL or writable for `capacity`
+// bytes; `out_size` NULL or writable.
+enum LodestarStatus lodestar_light_guide_save(const struct LodestarLightGuide *guide,
+                                              uint8_t *buffer,
+                                              size_t capacity,
+                                              size_t *out_size);
+
+// Reads a light guide saved by `lodestar_light_guide_save` (the bytes are copied). A
+// damaged, truncated or foreign buffer returns `LODESTAR_STATUS_DECODE_FAILED` naming
+// what is wrong.
+//
+// # Safety
+// `bytes` must be NULL or readable for `size` bytes; `out_guide` NULL or writable.
+enum LodestarStatus lodestar_light_guide_load(const uint8_t *bytes,
+                                              size_t size,
+                                              struct LodestarLightGuide **out_guide);
 
 // Creates an empty recorder; `*out_recorder` owns it.
 //

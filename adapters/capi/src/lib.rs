@@ -16,11 +16,16 @@
 //! `lodestar_guide_release` need the guide to themselves: no other call on the same
 //! guide may be in flight (call `rebuild` between passes). A `LodestarPathRecorder`
 //! belongs to one thread at a time. The error message is kept per thread.
+//!
+//! A `LodestarLightGuide` (learned light selection for next-event estimation, Eq. 3)
+//! follows the same rules: `cell`, `select`, `probability`, `update` and `save` from
+//! any thread, `rebuild` and `release` alone.
 #![deny(missing_docs, unsafe_op_in_unsafe_fn)]
 
 mod arguments;
 mod config;
 mod guide;
+mod light_guide;
 mod recorder;
 mod serialize;
 mod status;
@@ -34,6 +39,12 @@ pub use guide::{
     lodestar_guide_create, lodestar_guide_estimate_integral, lodestar_guide_estimate_integral_lambertian,
     lodestar_guide_locate, lodestar_guide_pdf, lodestar_guide_rebuild, lodestar_guide_release, lodestar_guide_sample,
     lodestar_guide_stats, lodestar_guide_update, lodestar_guide_validate, LodestarEvalCos, LodestarGuide,
+};
+pub use light_guide::{
+    lodestar_light_guide_cell, lodestar_light_guide_config_default, lodestar_light_guide_create,
+    lodestar_light_guide_load, lodestar_light_guide_probability, lodestar_light_guide_rebuild,
+    lodestar_light_guide_release, lodestar_light_guide_save, lodestar_light_guide_select, lodestar_light_guide_update,
+    LodestarLightGuide, LodestarLightGuideConfig, LodestarLightRule,
 };
 pub use recorder::{
     lodestar_path_recorder_arrive, lodestar_path_recorder_carry, lodestar_path_recorder_clear,

@@ -18,7 +18,7 @@ use alloc::vec::Vec;
 use core::sync::atomic::Ordering;
 
 use crate::bytes::{invalid_field, open_guide_bytes, ByteReader, ByteWriter};
-use crate::error::{DecodeError, Error};
+use crate::error::Error;
 
 use super::guide::LightGuide;
 use super::settings::{LightGuideSettings, LightUpdateRule};
@@ -66,11 +66,7 @@ pub(crate) fn encode(guide: &LightGuide) -> Vec<u8> {
 
 fn read_settings(r: &mut ByteReader<'_>) -> Result<LightGuideSettings, Error> {
     let budget_bytes = usize::try_from(r.u64()?).map_err(|_| invalid_field("budget_bytes", 0, "addressable"))?;
-    let given = match r.u32()? {
-        0 => false,
-        1 => true,
-        _ => return Err(invalid_field("resolution_given", 0, "0 or 1")),
-    };
+    let given = r.flag("resolution_given")?;
     let resolution = [r.u32()?, r.u32()?, r.u32()?];
     let (power_mix, uniform_mix) = (r.f32()?, r.f32()?);
     let rule = match r.u32()? {
@@ -95,11 +91,9 @@ pub(crate) fn decode(bytes: &[u8]) -> Result<LightGuide, Error> {
     if lights == 0 || lights > super::settings::MAX_LIGHTS {
         return Err(invalid_field("light_count", 0, "in 1..=2^20"));
     }
-    // The shares are read before the guide is built: it needs them as powers.
-    if r.remaining() < lights * 4 {
-        return Err(DecodeError::Truncated { offset: r.offset(), needed: lights * 4, available: r.remaining() }.into());
-    }
-    let mut power_share = Vec::with_capacity(lights);
+    // The shares are read before the guide is built: it needs them as powers (a
+    // damaged count reserves no more than the bytes left).
+    let mut power_share = Vec::with_capacity(lights.min(r.remaining() / 4));
     for index in 0..lights {
         let share = r.f32()?;
         if !(share.is_finite() && (0.0..=1.0).contains(&share)) {
@@ -140,6 +134,8 @@ pub(crate) fn decode(bytes: &[u8]) -> Result<LightGuide, Error> {
 #[cfg(test)]
 mod tests {
     use glam::Vec3;
+
+    use crate::error::DecodeError;
 
     use super::*;
     use crate::low_discrepancy::Pcg32;

@@ -25,7 +25,7 @@ use super::settings::{SpatialDirectionalTreeSettings, MAX_SPATIAL_DEPTH};
 use super::spatial::{Parent, SpatialNode, LEAF};
 use crate::atomic_f32;
 use crate::bytes::{invalid_field, open_guide_bytes, ByteWriter};
-use crate::error::{DecodeError, Error};
+use crate::error::Error;
 
 /// Version of the byte format.
 pub const FORMAT_VERSION: u32 = 2;
@@ -118,14 +118,7 @@ pub(crate) fn from_bytes(bytes: &[u8]) -> Result<SpatialDirectionalTree, Error> 
     let needed = counts[0] as u64 * SPATIAL_NODE_SIZE as u64
         + counts[1] as u64 * LEAF_SIZE as u64
         + counts[2] as u64 * QUAD_NODE_SIZE as u64;
-    if r.remaining() as u64 != needed {
-        return Err(if (r.remaining() as u64) < needed {
-            DecodeError::Truncated { offset: r.offset(), needed: needed as usize, available: r.remaining() }
-        } else {
-            DecodeError::TrailingBytes { count: r.remaining() - needed as usize }
-        }
-        .into());
-    }
+    r.expect_remaining(usize::try_from(needed).unwrap_or(usize::MAX))?;
     let mut spatial = Vec::with_capacity(counts[0]);
     for _ in 0..counts[0] {
         spatial.push(SpatialNode { child: [r.u32()?, r.u32()?], axis: r.u32()? });

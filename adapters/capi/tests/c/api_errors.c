@@ -1,6 +1,6 @@
 /* Every error path of Lodestar's C API, called from C: NULL pointers, NaN and infinite
  * numbers, out-of-range arguments, wrong struct sizes, unknown enum values, stale
- * regions, small and corrupted buffers, and the path recorder's calls. Each check asserts the status code and that
+ * regions, small and corrupted buffers, the path recorder's calls and the light guide's. Each check asserts the status code and that
  * lodestar_last_error() names the culprit; a final part updates one guide from four
  * threads at once. Prints one line per failed check and exits non-zero on any. */
 #include <math.h>
@@ -329,6 +329,97 @@ static void concurrent_updates(LodestarGuide *guide) {
     EXPECT_OK(lodestar_guide_validate(guide));
 }
 
+/* The light guide: its config, every call's bad arguments, learning that moves the
+ * selection towards the light that arrives, and a save/load round trip. */
+static void light_guide_errors(void) {
+    LodestarLightGuideConfig config;
+    LodestarLightGuide *lights = NULL;
+    const float powers[] = {1.0f, 1.0f, 2.0f};
+    LodestarVec3 low = {0, 0, 0}, high = {4, 2, 1}, inside = {1, 1, 0.5f}, nan_point = {NAN, 0, 0};
+    EXPECT(lodestar_light_guide_config_default(NULL), LODESTAR_STATUS_NULL_ARGUMENT, "out_config");
+    EXPECT_OK(lodestar_light_guide_config_default(&config));
+    config.rule = 7;
+    EXPECT(lodestar_light_guide_create(&config, low, high, powers, 3, &lights), LODESTAR_STATUS_UNKNOWN_ENUM_VALUE,
+           "rule");
+    config.rule = LODESTAR_LIGHT_RULE_MEAN_CONTRIBUTION;
+    config.struct_size = 8;
+    EXPECT(lodestar_light_guide_create(&config, low, high, powers, 3, &lights), LODESTAR_STATUS_WRONG_STRUCT_SIZE,
+           "struct_size");
+    EXPECT_OK(lodestar_light_guide_config_default(&config));
+    config.uniform_mix = NAN;
+    EXPECT(lodestar_light_guide_create(&config, low, high, powers, 3, &lights), LODESTAR_STATUS_NON_FINITE_ARGUMENT,
+           "uniform_mix");
+    EXPECT_OK(lodestar_light_guide_config_default(&config));
+    EXPECT(lodestar_light_guide_create(NULL, low, high, powers, 3, &lights), LODESTAR_STATUS_NULL_ARGUMENT, "config");
+    EXPECT(lodestar_light_guide_create(&config, low, high, NULL, 3, &lights), LODESTAR_STATUS_NULL_ARGUMENT, "powers");
+    EXPECT(lodestar_light_guide_create(&config, nan_point, high, powers, 3, &lights),
+           LODESTAR_STATUS_NON_FINITE_ARGUMENT, "low");
+    EXPECT(lodestar_light_guide_create(&config, low, high, powers, 0, &lights), LODESTAR_STATUS_INVALID_CONFIG,
+           "light_count");
+    const float negative[] = {1.0f, -1.0f};
+    EXPECT(lodestar_light_guide_create(&config, low, high, negative, 2, &lights), LODESTAR_STATUS_INVALID_CONFIG,
+           "light_powers");
+    TRUTH(lights == NULL);
+    EXPECT_OK(lodestar_light_guide_create(&config, low, high, powers, 3, &lights));
+
+    uint32_t cell = 0, light = 0;
+    float probability = 0;
+    LodestarUpdateOutcome outcome;
+    EXPECT(lodestar_light_guide_cell(NULL, inside, &cell), LODESTAR_STATUS_NULL_ARGUMENT, "guide");
+    EXPECT(lodestar_light_guide_cell(lights, nan_point, &cell), LODESTAR_STATUS_NON_FINITE_ARGUMENT, "position");
+    EXPECT_OK(lodestar_light_guide_cell(lights, inside, &cell));
+    EXPECT(lodestar_light_guide_select(lights, cell, 1.5f, &light, &probability), LODESTAR_STATUS_INVALID_ARGUMENT,
+           "`u`");
+    EXPECT(lodestar_light_guide_select(lights, 1u << 30, 0.5f, &light, &probability),
+           LODESTAR_STATUS_INVALID_ARGUMENT, "cell");
+    EXPECT(lodestar_light_guide_select(lights, cell, 0.5f, NULL, &probability), LODESTAR_STATUS_NULL_ARGUMENT,
+           "out_light");
+    EXPECT(lodestar_light_guide_probability(lights, cell, 3, &probability), LODESTAR_STATUS_INVALID_ARGUMENT, "light");
+    EXPECT(lodestar_light_guide_update(lights, cell, 0, NAN, 1, &outcome), LODESTAR_STATUS_NON_FINITE_ARGUMENT,
+           "contribution");
+    EXPECT(lodestar_light_guide_update(lights, cell, 0, -1.0f, 1, &outcome), LODESTAR_STATUS_INVALID_ARGUMENT,
+           "negative");
+    EXPECT(lodestar_light_guide_update(lights, cell, 0, 1.0f, 2, &outcome), LODESTAR_STATUS_INVALID_ARGUMENT,
+           "unoccluded");
+    EXPECT(lodestar_light_guide_rebuild(NULL), LODESTAR_STATUS_NULL_ARGUMENT, "guide");
+
+    /* Only light 0 ever arrives from this cell: after a rebuild it is the likeliest. */
+    int learned = 1;
+    for (int i = 0; i < 200; ++i) {
+        learned &= lodestar_light_guide_update(lights, cell, 0, 5.0f, 1, &outcome) == LODESTAR_STATUS_OK;
+        learned &= lodestar_light_guide_update(lights, cell, 2, 5.0f, 0, &outcome) == LODESTAR_STATUS_OK;
+    }
+    TRUTH(learned);
+    EXPECT_OK(lodestar_light_guide_rebuild(lights));
+    float p0 = 0, p2 = 0;
+    EXPECT_OK(lodestar_light_guide_probability(lights, cell, 0, &p0));
+    EXPECT_OK(lodestar_light_guide_probability(lights, cell, 2, &p2));
+    TRUTH(p0 > 0.6f && p2 > 0.0f);
+    EXPECT_OK(lodestar_light_guide_select(lights, cell, 0.1f, &light, &probability));
+    float again = 0;
+    EXPECT_OK(lodestar_light_guide_probability(lights, cell, light, &again));
+    TRUTH(again == probability);
+
+    size_t size = 0, written = 0;
+    EXPECT_OK(lodestar_light_guide_save(lights, NULL, 0, &size));
+    uint8_t *bytes = malloc(size);
+    EXPECT(lodestar_light_guide_save(lights, bytes, size - 1, &written), LODESTAR_STATUS_BUFFER_TOO_SMALL, "capacity");
+    EXPECT_OK(lodestar_light_guide_save(lights, bytes, size, &written));
+    TRUTH(written == size);
+    LodestarLightGuide *loaded = NULL;
+    bytes[size / 2] ^= 0x10;
+    EXPECT(lodestar_light_guide_load(bytes, size, &loaded), LODESTAR_STATUS_DECODE_FAILED, "checksum");
+    bytes[size / 2] ^= 0x10;
+    EXPECT(lodestar_light_guide_load(bytes, size - 9, &loaded), LODESTAR_STATUS_DECODE_FAILED, "");
+    EXPECT_OK(lodestar_light_guide_load(bytes, size, &loaded));
+    float loaded_p0 = 0;
+    EXPECT_OK(lodestar_light_guide_probability(loaded, cell, 0, &loaded_p0));
+    TRUTH(loaded_p0 == p0);
+    EXPECT_OK(lodestar_light_guide_release(loaded));
+    free(bytes);
+    EXPECT_OK(lodestar_light_guide_release(lights));
+}
+
 int main(void) {
     TRUTH(lodestar_version() == LODESTAR_VERSION);
     config_errors();
@@ -342,6 +433,7 @@ int main(void) {
     buffer_errors(guide);
     concurrent_updates(guide);
     EXPECT_OK(lodestar_guide_release(guide));
+    light_guide_errors();
     printf("api_errors: %d of %d checks passed\n", checks - failures, checks);
     return failures == 0 ? 0 : 1;
 }
