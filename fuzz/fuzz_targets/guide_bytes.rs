@@ -11,8 +11,8 @@ use glam::{Vec2, Vec3};
 use guiding_core::{
     reseal_checksum, GaussianMixture, GaussianMixtureSettings, Guide, HemisphereGrid, HemisphereGridSettings,
     HemisphereMapping, IrradianceVolume, IrradianceVolumeSettings, LightCell, LightGuide, LightGuideSettings,
-    MixtureRegion, PatchLayout, ProbeId,
-    SpatialDirectionalTree, SpatialDirectionalTreeSettings, TreeRegion, Triangle, VolumeRegion,
+    MixtureRegion, PatchLayout, ProbeId, SpatialDirectionalTree, SpatialDirectionalTreeSettings, TreeRegion, Triangle,
+    VolumeRegion,
 };
 use libfuzzer_sys::fuzz_target;
 
