@@ -14,7 +14,7 @@
 //! layout, unchanged). Each pass writes its image; the host adds it into the f64 film
 //! and takes the pass mean, as the CPU renderer does.
 //!
-//! Guiding: a [`HemisphereGrid`]'s flat arrays are uploaded as they are (positions and
+//! Guiding: a [`HemisphereGrid`](guiding_core::HemisphereGrid)'s flat arrays are uploaded as they are (positions and
 //! normals as f32 triples, Q as f32 bits, visits, CDFs, Lambertian sums, the hash grid's
 //! bucket table); the shader locates the nearest probe with a similar normal, samples
 //! ∝ Q by CDF inversion, evaluates the mixture pdf for MIS, and learns by Eq. (1)/(2)
