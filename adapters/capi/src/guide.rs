@@ -4,7 +4,7 @@ use std::cell::Cell;
 use std::ffi::c_void;
 
 use glam::{Vec2, Vec3};
-use guiding_core::{Guide, HemisphereGrid, Lambertian, ProbeId, ScatteringFunction, Triangle, UpdateOutcome};
+use guiding_core::{Guide, HemisphereGrid, Lambertian, ProbeId, ScatteringFunction, Triangle};
 
 use crate::arguments::{borrow, direction, finite, point, slice, uniform, Output};
 use crate::config::LodestarGuideConfig;
@@ -236,22 +236,7 @@ pub unsafe extern "C" fn lodestar_guide_update(
         let outcome = match &guide.structure {
             GuideStructure::Hemisphere(grid) => grid.update(LodestarGuide::probe(grid, region)?, wi, target),
         };
-        match outcome {
-            UpdateOutcome::Accepted => out.write(LodestarUpdateOutcome::Accepted),
-            UpdateOutcome::OutsideDomain => out.write(LodestarUpdateOutcome::OutsideDomain),
-            UpdateOutcome::RejectedNonFinite => {
-                return Err(Failure::new(
-                    LodestarStatus::NonFiniteArgument,
-                    format!("`target` is {target}: rejected and counted, not stored"),
-                ))
-            }
-            UpdateOutcome::RejectedNegative => {
-                return Err(Failure::new(
-                    LodestarStatus::InvalidArgument,
-                    format!("`target` = {target} is negative: rejected and counted, not stored"),
-                ))
-            }
-        }
+        out.write(LodestarUpdateOutcome::from_core(outcome, "target", target)?);
         Ok(())
     })
 }

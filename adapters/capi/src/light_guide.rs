@@ -3,9 +3,10 @@
 //! learn from what the ray brought, rebuild between passes, save and load.
 
 use glam::Vec3;
-use guiding_core::{LightCell, LightGuide, LightGuideSettings, LightUpdateRule, UpdateOutcome};
+use guiding_core::{LightCell, LightGuide, LightGuideSettings, LightUpdateRule};
 
 use crate::arguments::{borrow, finite, point, slice, uniform, Output};
+use crate::serialize::write_bytes;
 use crate::status::{guarded, Failure, LodestarStatus};
 use crate::types::{LodestarUpdateOutcome, LodestarVec3};
 
@@ -301,22 +302,11 @@ pub unsafe extern "C" fn lodestar_light_guide_update(
             }
         };
         let (cell, light) = (self::cell(guide, cell)?, self::light(guide, light)?);
-        match guide.update(cell, light, contribution, unoccluded) {
-            UpdateOutcome::Accepted => out.write(LodestarUpdateOutcome::Accepted),
-            UpdateOutcome::OutsideDomain => out.write(LodestarUpdateOutcome::OutsideDomain),
-            UpdateOutcome::RejectedNonFinite => {
-                return Err(Failure::new(
-                    LodestarStatus::NonFiniteArgument,
-                    format!("`contribution` is {contribution}: rejected and counted, not learned"),
-                ))
-            }
-            UpdateOutcome::RejectedNegative => {
-                return Err(Failure::new(
-                    LodestarStatus::InvalidArgument,
-                    format!("`contribution` = {contribution} is negative: rejected and counted, not learned"),
-                ))
-            }
-        }
+        out.write(LodestarUpdateOutcome::from_core(
+            guide.update(cell, light, contribution, unoccluded),
+            "contribution",
+            contribution,
+        )?);
         Ok(())
     })
 }
@@ -361,18 +351,8 @@ pub unsafe extern "C" fn lodestar_light_guide_save(
             return Ok(());
         }
         unsafe { slice(buffer.cast_const(), capacity, "buffer") }?;
-        if bytes.len() > capacity {
-            out.write(bytes.len());
-            return Err(Failure::new(
-                LodestarStatus::BufferTooSmall,
-                format!("`capacity` = {capacity} bytes, the guide needs {} (written to *out_size)", bytes.len()),
-            ));
-        }
-        // SAFETY: `buffer` holds `capacity` ≥ `bytes.len()` writable bytes (the caller's
-        // contract) and cannot overlap the freshly allocated `bytes`.
-        unsafe { std::ptr::copy_nonoverlapping(bytes.as_ptr(), buffer, bytes.len()) };
-        out.write(bytes.len());
-        Ok(())
+        // SAFETY: `buffer` was checked, and is writable for `capacity` bytes by the caller's contract.
+        unsafe { write_bytes(&bytes, buffer, capacity, out) }
     })
 }
 

@@ -46,20 +46,36 @@ pub unsafe extern "C" fn lodestar_guide_save(
         let guide = unsafe { borrow(guide, "guide") }?;
         unsafe { slice(buffer.cast_const(), capacity, "buffer") }?;
         let out = unsafe { Output::new(out_size, "out_size") }?;
-        let bytes = guide.to_bytes();
-        if bytes.len() > capacity {
-            out.write(bytes.len());
-            return Err(Failure::new(
-                LodestarStatus::BufferTooSmall,
-                format!("`capacity` = {capacity} bytes, the guide needs {} (written to *out_size)", bytes.len()),
-            ));
-        }
-        // SAFETY: `buffer` holds `capacity` ≥ `bytes.len()` writable bytes (the caller's
-        // contract) and cannot overlap the freshly allocated `bytes`.
-        unsafe { std::ptr::copy_nonoverlapping(bytes.as_ptr(), buffer, bytes.len()) };
-        out.write(bytes.len());
-        Ok(())
+        // SAFETY: `buffer` was checked, and is writable for `capacity` bytes by the caller's contract.
+        unsafe { write_bytes(&guide.to_bytes(), buffer, capacity, out) }
     })
+}
+
+/// Copies `bytes` to the caller's `buffer` of `capacity` bytes and their length to `out`;
+/// when they do not fit nothing is copied, `out` receives the length needed and the
+/// call fails with `BUFFER_TOO_SMALL`.
+///
+/// # Safety
+/// `buffer` must be writable for `capacity` bytes (checked non-NULL and aligned by the
+/// caller's `slice`).
+pub(crate) unsafe fn write_bytes(
+    bytes: &[u8],
+    buffer: *mut u8,
+    capacity: usize,
+    out: Output<usize>,
+) -> Result<(), Failure> {
+    if bytes.len() > capacity {
+        out.write(bytes.len());
+        return Err(Failure::new(
+            LodestarStatus::BufferTooSmall,
+            format!("`capacity` = {capacity} bytes, the guide needs {} (written to *out_size)", bytes.len()),
+        ));
+    }
+    // SAFETY: `buffer` holds `capacity` ≥ `bytes.len()` writable bytes (the caller's
+    // contract) and cannot overlap `bytes`, which the library allocated.
+    unsafe { std::ptr::copy_nonoverlapping(bytes.as_ptr(), buffer, bytes.len()) };
+    out.write(bytes.len());
+    Ok(())
 }
 
 /// Reads a guide saved by `lodestar_guide_save` (the bytes are copied; the buffer may

@@ -1,7 +1,9 @@
 //! The plain C types that cross the boundary, and the library version.
 
 use glam::Vec3;
-use guiding_core::GuideStats;
+use guiding_core::{GuideStats, UpdateOutcome};
+
+use crate::status::{Failure, LodestarStatus};
 
 /// Major version of this library: incompatible ABI changes bump it.
 pub const LODESTAR_VERSION_MAJOR: u32 = 0;
@@ -76,6 +78,26 @@ pub enum LodestarUpdateOutcome {
     Accepted = 0,
     /// The direction lies below the region's horizon: nothing to update.
     OutsideDomain = 1,
+}
+
+impl LodestarUpdateOutcome {
+    /// The C outcome of a core update of `value` (named `name` in the message): the
+    /// core's rejections become errors (NaN/∞: `NON_FINITE_ARGUMENT`, negative:
+    /// `INVALID_ARGUMENT`), counted by the guide and not stored.
+    pub(crate) fn from_core(outcome: UpdateOutcome, name: &str, value: f32) -> Result<Self, Failure> {
+        match outcome {
+            UpdateOutcome::Accepted => Ok(Self::Accepted),
+            UpdateOutcome::OutsideDomain => Ok(Self::OutsideDomain),
+            UpdateOutcome::RejectedNonFinite => Err(Failure::new(
+                LodestarStatus::NonFiniteArgument,
+                format!("`{name}` is {value}: rejected and counted, not stored"),
+            )),
+            UpdateOutcome::RejectedNegative => Err(Failure::new(
+                LodestarStatus::InvalidArgument,
+                format!("`{name}` = {value} is negative: rejected and counted, not stored"),
+            )),
+        }
+    }
 }
 
 /// Sizes and counters of a guide.
