@@ -231,8 +231,14 @@ fn assert_iterative_tree_agrees(scene: &std::path::Path, spp: u32, reference_spp
         reference_tracer::integrator::IntegratorSettings { guide_depth: 1, ..settings(Method::GuidedNee) };
     // Guided with next-event estimation in its training passes only (their images
     // MIS-weighted, the frozen ones without it), the guide learning the light samples too.
-    let kickstart =
-        reference_tracer::integrator::IntegratorSettings { nee_kickstart: true, ..settings(Method::Guided) };
+    // Beside the focal guide, as guided's defaults have it (the light samples' densities
+    // then include its term).
+    let kickstart = reference_tracer::integrator::IntegratorSettings {
+        nee_kickstart: true,
+        focal_probability: 0.25,
+        focal_learning_share: 1.0,
+        ..settings(Method::Guided)
+    };
     let cases = [settings(Method::Guided), settings(Method::GuidedNee), first_vertex, kickstart];
     for (i, integrator) in cases.into_iter().enumerate() {
         let method = integrator.method;

@@ -73,8 +73,8 @@ pub struct TraceOptions {
     /// through, learned from the segments that carried it) instead of the BSDF, at every
     /// vertex of a guided method; each region of space learns its own share up to it (the
     /// least variance among 0, 0.02, … 0.5, --focal-share-cost); p_guide + p_focal ≤ 1. 0 leaves it out.
-    /// Default 0.5 (at most 1 − p_guide) on the CPU for guided-nee, 0 for guided (see
-    /// --nee-kickstart) and on the GPU (which has no focal guide). 0.5 with `--guide none --p-guide 0 --schedule iterative`, at 60 s: door
+    /// Default 0.5 (at most 1 − p_guide) on the CPU for guided-nee, 0.25 for guided (see
+    /// --nee-kickstart), 0 on the GPU (which has no focal guide). 0.5 with `--guide none --p-guide 0 --schedule iterative`, at 60 s: door
     /// 160×120 0.57–0.60 × nee's relMSE, cornell 128² 1.02 ×.
     #[arg(long)]
     pub(super) p_focal: Option<f32>,
@@ -205,10 +205,10 @@ pub struct TraceOptions {
     /// its learning passes (on, off): their images gain its light samples, and the guides
     /// learn the full incident radiance, lights included, which the frozen passes then
     /// sample without it (Practical Path Guiding's "kickstart"). Default on for guided on
-    /// the CPU, with the guide at every vertex and no focal guide: guided ÷ pt's relMSE at
-    /// 20 s went from 1.27 to 0.48 on door 160×120 and from 0.47 to 0.25 on cornell 128²,
-    /// but from 0.61 to 1.21 on many_lights 160×120 (the numbers at `without_nee_defaults`
-    /// in cli/settings.rs). The GPU tracer has none.
+    /// the CPU, with the guide at every vertex and the focal guide at most 0.25: guided ÷
+    /// pt's relMSE at 20 s went from 1.27 to 0.61 on door 160×120, from 0.47 to 0.36 on
+    /// cornell 128² and from 0.61 to 0.71 on many_lights 160×120 (seed 41; both seeds
+    /// at `without_nee_defaults` in cli/settings.rs). The GPU tracer has none.
     #[arg(long, value_parser = parse_switch)]
     pub(super) nee_kickstart: Option<bool>,
     /// Guided methods: seconds of training passes whose samples are discarded (their

@@ -101,25 +101,25 @@ impl TraceOptions {
 
     /// Whether `method` takes the CPU's defaults for guiding without next-event
     /// estimation in the image: next-event estimation in the training passes only
-    /// (`--nee-kickstart`), the guide at every vertex, no focal guide, and the grid
-    /// learning from the path's continuation. Measured with `lodestar render --integrator
-    /// guided --seconds 20`, relMSE ÷ pt's, seeds 41 and 42, against guided-nee's
-    /// defaults (in brackets): door 160×120 0.48/0.53 (1.27/1.14), cornell 128² 0.25/0.25
-    /// (0.47/0.49), glossy 128² 0.57/0.61 (0.47/0.55), many_lights 160×120 1.21/1.23
-    /// (0.61/0.61); geometric mean 0.55 against 0.65. Many small lights want the focal
-    /// guide, which these defaults leave out (kickstarted with it: 0.70/0.83, and door
-    /// 0.76/0.81).
+    /// (`--nee-kickstart`), the guide at every vertex, the focal guide at most 0.25, and
+    /// the grid learning from the path's continuation. Measured with `lodestar render
+    /// --integrator guided --seconds 20`, relMSE ÷ pt's, seeds 41 and 42: door 160×120
+    /// 0.61/0.50, cornell 128² 0.36/0.35, glossy 128² 0.65/0.73, many_lights 160×120
+    /// 0.71/0.80 (geometric mean 0.57). Without the focal guide: 0.48/0.53, 0.25/0.25,
+    /// 0.57/0.61 and 1.21/1.23 (0.55: equal within noise, but guided lost to pt on many
+    /// small lights, which only the focal guide aims at). With guided-nee's defaults: 1.27/1.14,
+    /// 0.47/0.49, 0.47/0.55, 0.61/0.61 (0.65).
     fn without_nee_defaults(&self, method: Method) -> bool {
         method == Method::Guided && self.device == Device::Cpu
     }
 
     /// The focal guide's most share: `--p-focal`, else 0.5 (at most 1 − p_guide) on the
-    /// CPU (0 for guided without next-event estimation) and 0 on the GPU.
+    /// CPU (0.25 for guided without next-event estimation) and 0 on the GPU.
     pub(super) fn p_focal(&self, method: Method) -> f32 {
         match (self.p_focal, self.device) {
             (Some(p), _) => p,
             (None, Device::Gpu) => 0.0,
-            (None, _) if self.without_nee_defaults(method) => 0.0,
+            (None, _) if self.without_nee_defaults(method) => 0.25f32.min(1.0 - self.p_guide()),
             (None, _) => 0.5f32.min(1.0 - self.p_guide()),
         }
     }
@@ -313,7 +313,7 @@ mod tests {
         let cpu = options(&[]);
         let guided = cpu.integrator(Method::Guided, &plan());
         assert!(guided.nee_kickstart);
-        assert_eq!((guided.guide_depth, guided.focal_probability), (u32::MAX, 0.0));
+        assert_eq!((guided.guide_depth, guided.focal_probability), (u32::MAX, 0.25));
         assert_eq!(grid_integral(&cpu, Method::Guided), IntegralEstimator::PathContinuation);
         let guided_nee = cpu.integrator(Method::GuidedNee, &plan());
         assert!(!guided_nee.nee_kickstart);
@@ -327,10 +327,10 @@ mod tests {
     #[test]
     fn options_asked_for_win_over_the_guided_defaults() {
         let asked =
-            options(&["--nee-kickstart", "off", "--guide-depth", "2", "--p-focal", "0.25", "--integral", "sampled"]);
+            options(&["--nee-kickstart", "off", "--guide-depth", "2", "--p-focal", "0.4", "--integral", "sampled"]);
         let guided = asked.integrator(Method::Guided, &plan());
         assert!(!guided.nee_kickstart);
-        assert_eq!((guided.guide_depth, guided.focal_probability), (2, 0.25));
+        assert_eq!((guided.guide_depth, guided.focal_probability), (2, 0.4));
         assert_eq!(grid_integral(&asked, Method::Guided), IntegralEstimator::BsdfSampled);
     }
 }
