@@ -82,6 +82,15 @@ impl ByteWriter {
     }
 
     /// The magic, the format version and the structure tag.
+    /// A grid's memory budget and its optional explicit resolution (a 0/1 flag, then
+    /// three cell counts), as [`ByteReader::budget_and_resolution`] reads them.
+    #[cfg_attr(not(any(feature = "mixture", feature = "env", feature = "lights")), allow(dead_code))]
+    pub(crate) fn put_budget_and_resolution(&mut self, budget_bytes: usize, resolution: Option<[u32; 3]>) {
+        self.put_u64(budget_bytes as u64);
+        self.put_u32(resolution.is_some() as u32);
+        resolution.unwrap_or([0; 3]).iter().for_each(|&n| self.put_u32(n));
+    }
+
     pub(crate) fn put_header(&mut self, version: u32, tag: u32) {
         self.put_bytes(MAGIC);
         self.put_u32(version);
@@ -197,6 +206,15 @@ impl<'a> ByteReader<'a> {
             _ => return Err(invalid_field("integral", 0, "a kind in 0..=4")),
         };
         Ok(UpdateRule { learning_rate, integral })
+    }
+
+    /// What [`ByteWriter::put_budget_and_resolution`] wrote.
+    #[cfg_attr(not(any(feature = "mixture", feature = "env", feature = "lights")), allow(dead_code))]
+    pub(crate) fn budget_and_resolution(&mut self) -> Result<(usize, Option<[u32; 3]>), Error> {
+        let budget_bytes = usize::try_from(self.u64()?).map_err(|_| invalid_field("budget_bytes", 0, "addressable"))?;
+        let given = self.flag("resolution_given")?;
+        let resolution = [self.u32()?, self.u32()?, self.u32()?];
+        Ok((budget_bytes, given.then_some(resolution)))
     }
 
     /// A 0/1 word as a flag; anything else is an invalid `field`.

@@ -104,3 +104,17 @@ pub(crate) fn uniform(value: f32, name: &str) -> Result<f32, Failure> {
         Err(Failure::new(LodestarStatus::InvalidArgument, format!("`{name}` = {value} is outside [0, 1]")))
     }
 }
+
+/// Checks a config's `struct_size` against the library's `expected` size of `type_name`.
+pub(crate) fn check_struct_size(found: u32, expected: usize, type_name: &str) -> Result<(), Failure> {
+    if found as usize == expected {
+        return Ok(());
+    }
+    Err(Failure::new(
+        LodestarStatus::WrongStructSize,
+        format!(
+            "`config->struct_size` is {found} but this library's {type_name} has {expected} bytes \
+             (header and library versions differ, or the config was not initialised)"
+        ),
+    ))
+}

@@ -4,7 +4,7 @@ use guiding_core::{
     HemisphereGridSettings, HemisphereMapping, IntegralEstimator, LearningRate, PatchLayout, UpdateRule,
 };
 
-use crate::arguments::{finite, Output};
+use crate::arguments::{check_struct_size, finite, Output};
 use crate::status::{guarded, Failure, LodestarStatus};
 
 /// Which Q structure a guide is (`LodestarGuideConfig.structure`).
@@ -140,17 +140,7 @@ impl LodestarGuideConfig {
     /// The hemisphere grid settings this config asks for: sizes, enums and numbers
     /// checked here, ranges by guiding-core.
     pub(crate) fn settings(&self) -> Result<HemisphereGridSettings, Failure> {
-        if self.struct_size as usize != size_of::<Self>() {
-            return Err(Failure::new(
-                LodestarStatus::WrongStructSize,
-                format!(
-                    "`config->struct_size` is {} but this library's LodestarGuideConfig has {} bytes \
-                     (header and library versions differ, or the config was not initialised)",
-                    self.struct_size,
-                    size_of::<Self>()
-                ),
-            ));
-        }
+        check_struct_size(self.struct_size, size_of::<Self>(), "LodestarGuideConfig")?;
         let unknown = |field: &str, value: u32, known: &str| {
             Failure::new(LodestarStatus::UnknownEnumValue, format!("`config->{field}` = {value} is not one of {known}"))
         };

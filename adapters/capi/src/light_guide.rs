@@ -5,7 +5,7 @@
 use glam::Vec3;
 use guiding_core::{LightCell, LightGuide, LightGuideSettings, LightUpdateRule};
 
-use crate::arguments::{borrow, finite, point, slice, uniform, Output};
+use crate::arguments::{borrow, check_struct_size, finite, point, slice, uniform, Output};
 use crate::serialize::write_bytes;
 use crate::status::{guarded, Failure, LodestarStatus};
 use crate::types::{LodestarUpdateOutcome, LodestarVec3};
@@ -60,16 +60,7 @@ impl LodestarLightGuideConfig {
     /// The settings this config asks for: size, enum and numbers checked here, ranges
     /// by guiding-core.
     fn settings(&self) -> Result<LightGuideSettings, Failure> {
-        if self.struct_size as usize != size_of::<Self>() {
-            return Err(Failure::new(
-                LodestarStatus::WrongStructSize,
-                format!(
-                    "`config->struct_size` is {} but this library's LodestarLightGuideConfig has {} bytes",
-                    self.struct_size,
-                    size_of::<Self>()
-                ),
-            ));
-        }
+        check_struct_size(self.struct_size, size_of::<Self>(), "LodestarLightGuideConfig")?;
         let rule = match self.rule {
             0 => LightUpdateRule::UnoccludedAverage,
             1 => LightUpdateRule::MeanContribution,

@@ -39,9 +39,7 @@ pub(crate) fn encode(guide: &EnvTileGuide) -> Vec<u8> {
     let lobes = guide.power_share.len();
     let mut w = ByteWriter::with_capacity(128 + lobes * 4 + entries * ENTRY_BYTES);
     w.put_header(FORMAT_VERSION, STRUCTURE_TAG);
-    w.put_u64(s.budget_bytes as u64);
-    w.put_u32(s.resolution.is_some() as u32);
-    s.resolution.unwrap_or([0; 3]).iter().for_each(|&n| w.put_u32(n));
+    w.put_budget_and_resolution(s.budget_bytes, s.resolution);
     s.tiles.iter().for_each(|&n| w.put_u32(n));
     w.put_f32(s.power_mix);
     w.put_f32(s.uniform_mix);
@@ -63,13 +61,10 @@ pub(crate) fn encode(guide: &EnvTileGuide) -> Vec<u8> {
 }
 
 fn read_settings(r: &mut ByteReader<'_>) -> Result<EnvTileGuideSettings, Error> {
-    let budget_bytes = usize::try_from(r.u64()?).map_err(|_| invalid_field("budget_bytes", 0, "addressable"))?;
-    let given = r.flag("resolution_given")?;
-    let resolution = [r.u32()?, r.u32()?, r.u32()?];
+    let (budget_bytes, resolution) = r.budget_and_resolution()?;
     let tiles = [r.u32()?, r.u32()?];
     let (power_mix, uniform_mix) = (r.f32()?, r.f32()?);
-    let settings =
-        EnvTileGuideSettings { budget_bytes, resolution: given.then_some(resolution), tiles, power_mix, uniform_mix };
+    let settings = EnvTileGuideSettings { budget_bytes, resolution, tiles, power_mix, uniform_mix };
     settings.validate()?;
     Ok(settings)
 }

@@ -44,9 +44,7 @@ pub(crate) fn encode(guide: &LightGuide) -> Vec<u8> {
     let entries = guide.values.len();
     let mut w = ByteWriter::with_capacity(96 + guide.lights * 4 + entries * ENTRY_BYTES);
     w.put_header(FORMAT_VERSION, STRUCTURE_TAG);
-    w.put_u64(s.budget_bytes as u64);
-    w.put_u32(s.resolution.is_some() as u32);
-    s.resolution.unwrap_or([0; 3]).iter().for_each(|&n| w.put_u32(n));
+    w.put_budget_and_resolution(s.budget_bytes, s.resolution);
     w.put_f32(s.power_mix);
     w.put_f32(s.uniform_mix);
     w.put_u32(rule_code(s.rule));
@@ -65,9 +63,7 @@ pub(crate) fn encode(guide: &LightGuide) -> Vec<u8> {
 }
 
 fn read_settings(r: &mut ByteReader<'_>) -> Result<LightGuideSettings, Error> {
-    let budget_bytes = usize::try_from(r.u64()?).map_err(|_| invalid_field("budget_bytes", 0, "addressable"))?;
-    let given = r.flag("resolution_given")?;
-    let resolution = [r.u32()?, r.u32()?, r.u32()?];
+    let (budget_bytes, resolution) = r.budget_and_resolution()?;
     let (power_mix, uniform_mix) = (r.f32()?, r.f32()?);
     let rule = match r.u32()? {
         0 => LightUpdateRule::UnoccludedAverage,
@@ -75,8 +71,7 @@ fn read_settings(r: &mut ByteReader<'_>) -> Result<LightGuideSettings, Error> {
         2 => LightUpdateRule::VisibilityRatio,
         _ => return Err(invalid_field("rule", 0, "0, 1 or 2")),
     };
-    let settings =
-        LightGuideSettings { budget_bytes, resolution: given.then_some(resolution), power_mix, uniform_mix, rule };
+    let settings = LightGuideSettings { budget_bytes, resolution, power_mix, uniform_mix, rule };
     settings.validate()?;
     Ok(settings)
 }

@@ -41,9 +41,7 @@ pub(crate) fn encode(guide: &GaussianMixture) -> Vec<u8> {
     let region_words = 1 + s.lobes * WORDS_PER_LOBE + batch_stride(s.lobes);
     let mut w = ByteWriter::with_capacity(128 + mixtures.len() * region_words * 4);
     w.put_header(FORMAT_VERSION, STRUCTURE_TAG);
-    w.put_u64(s.budget_bytes as u64);
-    w.put_u32(s.resolution.is_some() as u32);
-    s.resolution.unwrap_or([0; 3]).iter().for_each(|&n| w.put_u32(n));
+    w.put_budget_and_resolution(s.budget_bytes, s.resolution);
     w.put_u32(s.lobes as u32);
     w.put_u32(s.split_by_normal as u32);
     w.put_f32(s.initial_q);
@@ -72,9 +70,7 @@ pub(crate) fn encode(guide: &GaussianMixture) -> Vec<u8> {
 }
 
 fn read_settings(r: &mut ByteReader<'_>) -> Result<GaussianMixtureSettings, Error> {
-    let budget_bytes = usize::try_from(r.u64()?).map_err(|_| invalid_field("budget_bytes", 0, "addressable"))?;
-    let given = r.flag("resolution_given")?;
-    let resolution = [r.u32()?, r.u32()?, r.u32()?];
+    let (budget_bytes, resolution) = r.budget_and_resolution()?;
     let lobes = r.u32()? as usize;
     let split_by_normal = r.flag("split_by_normal")?;
     let initial_q = r.f32()?;
@@ -82,7 +78,7 @@ fn read_settings(r: &mut ByteReader<'_>) -> Result<GaussianMixtureSettings, Erro
     let update_rule = r.update_rule()?;
     let settings = GaussianMixtureSettings {
         budget_bytes,
-        resolution: given.then_some(resolution),
+        resolution,
         lobes,
         split_by_normal,
         initial_q,
