@@ -13,7 +13,7 @@ pub(crate) fn invalid_field(field: &'static str, index: usize, requirement: &'st
     Error::Decode(DecodeError::InvalidField { field, index, requirement })
 }
 
-/// Checks the magic, checksum, format version and structure tag of a serialized guide and
+/// Checks the magic, checksum, structure tag and format version of a serialized guide and
 /// returns a reader positioned after them.
 pub(crate) fn open_guide_bytes(bytes: &[u8], version: u32, tag: u32) -> Result<ByteReader<'_>, Error> {
     if bytes.len() < MAGIC.len() || &bytes[..MAGIC.len()] != MAGIC {
@@ -22,12 +22,13 @@ pub(crate) fn open_guide_bytes(bytes: &[u8], version: u32, tag: u32) -> Result<B
     let mut r = ByteReader::verified(bytes)?;
     r.take(MAGIC.len())?;
     let found = r.u32()?;
-    if found != version {
-        return Err(DecodeError::UnsupportedVersion { found, supported: version }.into());
-    }
     let structure = r.u32()?;
+    // The structure first: another structure's bytes are that, whatever their version.
     if structure != tag {
         return Err(DecodeError::WrongStructure { found: structure, expected: tag }.into());
+    }
+    if found != version {
+        return Err(DecodeError::UnsupportedVersion { found, supported: version }.into());
     }
     Ok(r)
 }

@@ -105,15 +105,14 @@ fn resolution_for(extent: Vec3, cells: usize) -> IVec3 {
     if largest.is_nan() || largest <= 0.0 {
         return IVec3::ONE;
     }
-    let extent = extent.max(Vec3::splat(largest * 1e-3));
-    let volume = extent.x as f64 * extent.y as f64 * extent.z as f64;
-    let mut side = libm::cbrt(volume / cells as f64);
+    // Relative to the largest side, in f64: a tiny box's products would underflow to 0
+    // (and 0/0 cells per axis) in f32.
+    let relative = |e: f32| (e as f64 / largest as f64).max(1e-3);
+    let extent = [relative(extent.x), relative(extent.y), relative(extent.z)];
+    let mut side = libm::cbrt(extent[0] * extent[1] * extent[2] / cells as f64);
     loop {
-        let r = IVec3::new(
-            libm::floor(extent.x as f64 / side).clamp(1.0, 1024.0) as i32,
-            libm::floor(extent.y as f64 / side).clamp(1.0, 1024.0) as i32,
-            libm::floor(extent.z as f64 / side).clamp(1.0, 1024.0) as i32,
-        );
+        let [x, y, z] = extent.map(|e| libm::floor(e / side).clamp(1.0, 1024.0) as i32);
+        let r = IVec3::new(x, y, z);
         if (r.x as usize) * (r.y as usize) * (r.z as usize) <= cells {
             return r;
         }
@@ -136,6 +135,11 @@ mod tests {
         // A flat box still has cells.
         let flat = CellGrid::new(Vec3::ZERO, Vec3::new(1.0, 0.0, 1.0), None, 1 << 10, 8).unwrap();
         assert!(flat.cell_count() > 1);
+        // A box of denormal size has cells on every axis (found by the capi_calls fuzzer:
+        // its f32 volume underflowed and an axis got none).
+        let tiny = CellGrid::new(Vec3::ZERO, Vec3::new(0.0, 0.0, 1.65e-43), None, 1 << 16, 8).unwrap();
+        assert!(tiny.resolution().iter().all(|&n| n >= 1), "{:?}", tiny.resolution());
+        assert!(tiny.cell(Vec3::new(0.0, 0.0, 1.5784e-41)).unwrap() < tiny.cell_count() as u32);
         assert!(matches!(CellGrid::new(Vec3::ONE, Vec3::ZERO, None, 64, 8), Err(Error::InvalidSetting { .. })));
         assert!(matches!(CellGrid::new(Vec3::ZERO, Vec3::ONE, None, 4, 8), Err(Error::BudgetTooSmall { .. })));
         assert!(matches!(CellGrid::new(Vec3::ZERO, Vec3::ONE, Some([4, 4, 4]), 64, 8), Err(Error::OverBudget { .. })));
