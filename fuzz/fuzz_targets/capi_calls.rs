@@ -1,4 +1,5 @@
-//! The C ABI with arbitrary arguments: a fuzzed config and mesh, then a fuzzed sequence
+//! The C ABI with arbitrary arguments: a fuzzed config and mesh (or bounds, for the
+//! volume, mixture and tree), then a fuzzed sequence
 //! of calls with NaN/∞ numbers, stray regions, NULL outputs, odd buffer sizes and edited
 //! saved buffers. No call may panic through (`LODESTAR_STATUS_INTERNAL_ERROR`) or crash,
 //! and what a successful call returns is finite.
@@ -123,24 +124,54 @@ fuzz_target!(|data: &[u8]| {
     if geometry & 2 != 0 {
         indices.iter_mut().for_each(|i| *i = input.u32() % 6);
     }
-    let config_pointer = if geometry & 4 != 0 { null() } else { &config as *const _ };
+    let null_config = geometry & 4 != 0;
+    let config_pointer = if null_config { null() } else { &config as *const _ };
     let mut guide = null_mut();
-    let created =
-        unsafe { lodestar_guide_create(config_pointer, positions.as_ptr(), 4, indices.as_ptr(), 2, &mut guide) };
+    let (low, high) = if geometry & 1 != 0 {
+        (input.vec3(), input.vec3())
+    } else {
+        (LodestarVec3::default(), LodestarVec3 { x: 1.0, y: 1.0, z: 1.0 })
+    };
+    // Small budgets keep each run quick; the other structures' configs are their defaults.
+    let created = unsafe {
+        match (geometry >> 3) % 4 {
+            0 => lodestar_guide_create(config_pointer, positions.as_ptr(), 4, indices.as_ptr(), 2, &mut guide),
+            1 => {
+                let mut c = MaybeUninit::uninit();
+                assert!(ok(lodestar_volume_config_default(c.as_mut_ptr())));
+                let c = LodestarVolumeConfig { budget_bytes: 64 << 10, ..c.assume_init() };
+                lodestar_guide_create_volume(if null_config { null() } else { &c }, low, high, &mut guide)
+            }
+            2 => {
+                let mut c = MaybeUninit::uninit();
+                assert!(ok(lodestar_mixture_config_default(c.as_mut_ptr())));
+                let c = LodestarMixtureConfig { budget_bytes: 64 << 10, ..c.assume_init() };
+                lodestar_guide_create_mixture(if null_config { null() } else { &c }, low, high, &mut guide)
+            }
+            _ => {
+                let mut c = MaybeUninit::uninit();
+                assert!(ok(lodestar_tree_config_default(c.as_mut_ptr())));
+                let c = LodestarTreeConfig { budget_bytes: 256 << 10, min_split_records: 16, ..c.assume_init() };
+                lodestar_guide_create_tree(if null_config { null() } else { &c }, low, high, &mut guide)
+            }
+        }
+    };
     if !ok(created) {
         assert!(guide.is_null());
         return;
     }
-    let mut region = LodestarRegion { index: LODESTAR_NO_REGION };
+    let mut region = LodestarRegion { index: LODESTAR_NO_REGION, flags: 0, normal: LodestarVec3::default() };
     while !input.0.is_empty() {
         let operation = input.u8();
         if operation & 0x80 != 0 {
-            region = LodestarRegion { index: input.u32() };
+            let index = input.u32();
+            let index = if operation & 0x40 != 0 { index } else { index % 1024 };
+            region = LodestarRegion { index, flags: input.u32(), normal: input.vec3() };
         }
         unsafe {
             match operation % 10 {
                 0 => {
-                    let mut found = LodestarRegion { index: 0 };
+                    let mut found = region;
                     if ok(lodestar_guide_locate(guide, input.vec3(), input.vec3(), &mut found)) {
                         region = found;
                     }
@@ -157,9 +188,14 @@ fuzz_target!(|data: &[u8]| {
                         assert!(pdf.is_finite() && pdf >= 0.0, "{pdf}");
                     }
                 }
-                3 | 4 => {
+                3 => {
                     let mut outcome = LodestarUpdateOutcome::Accepted;
                     ok(lodestar_guide_update(guide, region, input.vec3(), input.f32(), &mut outcome));
+                }
+                4 => {
+                    let mut outcome = LodestarUpdateOutcome::Accepted;
+                    let (direction, target, pdf) = (input.vec3(), input.f32(), input.f32());
+                    ok(lodestar_guide_update_sampled(guide, region, direction, target, pdf, &mut outcome));
                 }
                 5 => {
                     let mut value = -1.0;

@@ -11,7 +11,7 @@
 #define LODESTAR_VERSION_MAJOR 0
 
 // Minor version: compatible additions.
-#define LODESTAR_VERSION_MINOR 1
+#define LODESTAR_VERSION_MINOR 2
 
 // Patch version: fixes.
 #define LODESTAR_VERSION_PATCH 0
@@ -73,8 +73,18 @@ enum LodestarStructure
   : uint32_t
 #endif // defined(__cplusplus) || __STDC_VERSION__ >= 202311L
  {
-  // Probes on the surfaces, each with a hemisphere of equal-area patches.
+  // Probes on the surfaces, each with a hemisphere of equal-area patches
+  // (`lodestar_guide_create`).
   LODESTAR_STRUCTURE_HEMISPHERE_GRID = 1,
+  // Full-sphere tables at the leaves of an adaptive octree over the scene bounds
+  // (`lodestar_guide_create_volume`).
+  LODESTAR_STRUCTURE_IRRADIANCE_VOLUME = 2,
+  // A von Mises–Fisher mixture per cell of a grid over the scene bounds
+  // (`lodestar_guide_create_mixture`).
+  LODESTAR_STRUCTURE_GAUSSIAN_MIXTURE = 3,
+  // A spatial binary tree whose leaves hold directional quadtrees
+  // (`lodestar_guide_create_tree`).
+  LODESTAR_STRUCTURE_SPATIAL_DIRECTIONAL_TREE = 4,
 };
 #ifndef __cplusplus
 #if __STDC_VERSION__ >= 202311L
@@ -175,9 +185,9 @@ typedef uint32_t LodestarLightRule;
 #endif // __STDC_VERSION__ >= 202311L
 #endif // __cplusplus
 
-// An opaque guide: create with `lodestar_guide_create` or
-// `lodestar_guide_load`, free with
-// `lodestar_guide_release`.
+// An opaque guide of any structure: create with `lodestar_guide_create` (a hemisphere
+// grid over a mesh), `lodestar_guide_create_volume`, `_mixture` or `_tree` (over scene
+// bounds), or `lodestar_guide_load`; free with `lodestar_guide_release`.
 typedef struct LodestarGuide LodestarGuide;
 
 // An opaque light guide. Create with `lodestar_light_guide_create` (or load), free with
@@ -190,6 +200,102 @@ typedef struct LodestarLightGuide LodestarLightGuide;
 // records its own path). Create with `lodestar_path_recorder_create`, free with
 // `lodestar_path_recorder_release`.
 typedef struct LodestarPathRecorder LodestarPathRecorder;
+
+// Shapes an irradiance volume (`lodestar_guide_create_volume`). Fill it with
+// `lodestar_volume_config_default`, then change what you need.
+typedef struct LodestarVolumeConfig {
+  // `sizeof(LodestarVolumeConfig)`: set by the default call.
+  uint32_t struct_size;
+  // Share of the budget the initial grid of leaves takes, (0, 1]; splitting spends the rest.
+  float initial_share;
+  // Memory budget for every table and the octree, bytes.
+  uint64_t budget_bytes;
+  // The initial grid's cells along x, y, z (1..=1024 each); all 0 sizes it from the budget.
+  uint32_t resolution[3];
+  // Bands in z and sectors in φ of each leaf's sphere of patches, 1..=256 each.
+  uint32_t sphere_resolution[2];
+  // A leaf splits in eight once its updates reach this many per patch, > 0.
+  float split_updates_per_patch;
+  // Q of every patch before learning, radiance, ≥ `q_floor`.
+  float initial_q;
+  // Lower bound of every stored Q, radiance, > 0.
+  float q_floor;
+  // Share of each leaf's sampling probability spread uniformly, [0, 1].
+  float uniform_mix;
+  // One of `LodestarLearningRate`.
+  uint32_t learning_rate;
+  // α for `EXPONENTIAL`, the decay exponent for `GLOBAL`; ignored otherwise.
+  float learning_rate_parameter;
+  // One of `LodestarIntegralEstimator`.
+  uint32_t integral_estimator;
+} LodestarVolumeConfig;
+
+// A point (scene units) or a direction (world space).
+typedef struct LodestarVec3 {
+  // x
+  float x;
+  // y
+  float y;
+  // z
+  float z;
+} LodestarVec3;
+
+// Shapes a Gaussian mixture guide (`lodestar_guide_create_mixture`). Fill it with
+// `lodestar_mixture_config_default`, then change what you need.
+typedef struct LodestarMixtureConfig {
+  // `sizeof(LodestarMixtureConfig)`: set by the default call.
+  uint32_t struct_size;
+  // Lobes per mixture, 1..=8.
+  uint32_t lobes;
+  // Memory budget for every mixture and its batch statistics, bytes.
+  uint64_t budget_bytes;
+  // Cells along x, y, z (1..=1024 each); all 0 fills the budget with near-cubic cells.
+  uint32_t resolution[3];
+  // 1: six regions per cell, one per sign of the normal's largest axis; 0: one.
+  uint32_t split_by_normal;
+  // Q per steradian before learning, radiance, > 0.
+  float initial_q;
+  // Share of the sampling density spread uniformly over the sphere, [0, 1].
+  float uniform_mix;
+  // One of `LodestarLearningRate`.
+  uint32_t learning_rate;
+  // α for `EXPONENTIAL`, the decay exponent for `GLOBAL`; ignored otherwise.
+  float learning_rate_parameter;
+  // One of `LodestarIntegralEstimator`.
+  uint32_t integral_estimator;
+} LodestarMixtureConfig;
+
+// Shapes a spatial × directional tree (`lodestar_guide_create_tree`). Fill it with
+// `lodestar_tree_config_default`, then change what you need.
+typedef struct LodestarTreeConfig {
+  // `sizeof(LodestarTreeConfig)`: set by the default call.
+  uint32_t struct_size;
+  // Deepest directional level, 1..=20.
+  uint32_t max_directional_depth;
+  // Memory budget for both trees and the building statistics, bytes.
+  uint64_t budget_bytes;
+  // c of the spatial split rule: a leaf splits past max(`min_split_records`, c·√R)
+  // records, R the whole tree's, > 0.
+  float spatial_threshold;
+  // The least records that let a leaf split, ≥ 1.
+  uint32_t min_split_records;
+  // A directional cell holding more than this share of its leaf's flux splits in
+  // four, (0, 1).
+  float flux_fraction;
+  // Deepest spatial level, 0..=24.
+  uint32_t max_spatial_depth;
+  // Share of the sampling density spread uniformly over the normal's hemisphere, [0, 1].
+  float uniform_mix;
+  // 1: sample only the normal's hemisphere (directions below are mirrored, with the
+  // exact pdf); 0: the whole sphere.
+  uint32_t fold_to_hemisphere;
+  // One of `LodestarLearningRate`.
+  uint32_t learning_rate;
+  // α for `EXPONENTIAL`, the decay exponent for `GLOBAL`; ignored otherwise.
+  float learning_rate_parameter;
+  // One of `LodestarIntegralEstimator` (`PATH_CONTINUATION` by default).
+  uint32_t integral_estimator;
+} LodestarTreeConfig;
 
 // Everything that shapes a guide. Fill it with `lodestar_guide_config_default`, then
 // change what you need. Enum fields are `uint32_t` holding one of the named enum's
@@ -230,21 +336,16 @@ typedef struct LodestarGuideConfig {
   uint32_t integral_estimator;
 } LodestarGuideConfig;
 
-// A point (scene units) or a direction (world space).
-typedef struct LodestarVec3 {
-  // x
-  float x;
-  // y
-  float y;
-  // z
-  float z;
-} LodestarVec3;
-
-// A located region of a guide (a probe of a hemisphere grid), valid for the guide that
-// returned it until that guide is released.
+// A located region of a guide, valid for the guide that returned it until that guide
+// is released or rebuilt into a new shape: pass it back as `locate` wrote it.
 typedef struct LodestarRegion {
-  // The region's index, or `LODESTAR_NO_REGION`.
+  // The region's index (a probe, a leaf, a cell), or `LODESTAR_NO_REGION`.
   uint32_t index;
+  // Structure-private bits (the tree's half of a leaf); 0 for the others.
+  uint32_t flags;
+  // The unit normal `locate` was given, which the volume, the mixture and the tree
+  // fold their directions about; the hemisphere grid uses its probe's own.
+  struct LodestarVec3 normal;
 } LodestarRegion;
 
 // A sampled direction and its density.
@@ -300,6 +401,61 @@ typedef struct LodestarLightGuideConfig {
 #ifdef __cplusplus
 extern "C" {
 #endif // __cplusplus
+
+// Fills `out_config` with guiding-core's irradiance volume defaults (2 MiB, 16 × 16
+// patches per sphere, simple averaging).
+//
+// # Safety
+// `out_config` must be NULL or writable for a `LodestarVolumeConfig`.
+enum LodestarStatus lodestar_volume_config_default(struct LodestarVolumeConfig *out_config);
+
+// Creates an irradiance volume over the box `low`..`high` (scene units; the scene's
+// bounds): an octree whose leaves hold full-sphere tables of Q. Regions carry the
+// surface normal `locate` was given. On success `*out_guide` owns the new guide.
+//
+// # Safety
+// `config` must be NULL or a valid config; `out_guide` NULL or writable.
+enum LodestarStatus lodestar_guide_create_volume(const struct LodestarVolumeConfig *config,
+                                                 struct LodestarVec3 low,
+                                                 struct LodestarVec3 high,
+                                                 struct LodestarGuide **out_guide);
+
+// Fills `out_config` with guiding-core's mixture defaults (2 MiB, 2 lobes, six regions
+// per cell).
+//
+// # Safety
+// `out_config` must be NULL or writable for a `LodestarMixtureConfig`.
+enum LodestarStatus lodestar_mixture_config_default(struct LodestarMixtureConfig *out_config);
+
+// Creates a Gaussian mixture guide over the box `low`..`high` (scene units): a grid of
+// cells, each with von Mises–Fisher mixtures fitted between passes (call
+// `lodestar_guide_rebuild`). On success `*out_guide` owns the new guide.
+//
+// # Safety
+// `config` must be NULL or a valid config; `out_guide` NULL or writable.
+enum LodestarStatus lodestar_guide_create_mixture(const struct LodestarMixtureConfig *config,
+                                                  struct LodestarVec3 low,
+                                                  struct LodestarVec3 high,
+                                                  struct LodestarGuide **out_guide);
+
+// Fills `out_config` with guiding-core's tree defaults (16 MiB, c = 32, ρ = 0.01, the
+// path's continuation as the integral).
+//
+// # Safety
+// `out_config` must be NULL or writable for a `LodestarTreeConfig`.
+enum LodestarStatus lodestar_tree_config_default(struct LodestarTreeConfig *out_config);
+
+// Creates a spatial × directional tree over the box `low`..`high` (scene units): it
+// refines in space and direction where records land, at each `lodestar_guide_rebuild`.
+// Teach it with `lodestar_guide_update_sampled` or a path recorder (it learns target/pdf).
+// On success `*out_guide` owns the new guide.
+//
+// # Safety
+// `config` must be NULL or a valid config; `out_guide` NULL or writable.
+enum LodestarStatus lodestar_guide_create_tree(const struct LodestarTreeConfig *config,
+                                               struct LodestarVec3 low,
+                                               struct LodestarVec3 high,
+                                               struct LodestarGuide **out_guide);
 
 // Fills `out_config` with the defaults: a hemisphere grid of 8 × 16 cylindrical patches
 // in a 2 MiB budget, simple averaging (Eq. 2), the BSDF-weighted integral.
@@ -377,6 +533,27 @@ enum LodestarStatus lodestar_guide_update(const struct LodestarGuide *guide,
                                           struct LodestarVec3 direction,
                                           float target,
                                           enum LodestarUpdateOutcome *out_outcome);
+
+// `lodestar_guide_update` for a direction the renderer drew with density `pdf` (per
+// steradian, > 0: the whole mixture's where guide and BSDF were mixed), so what is
+// learned does not depend on how directions were drawn. The tree learns only this way
+// (its plain update assumes a uniform density). Thread-safe (lock-free).
+//
+// # Safety
+// `guide` must be NULL or a live handle; `out_outcome` NULL or writable.
+enum LodestarStatus lodestar_guide_update_sampled(const struct LodestarGuide *guide,
+                                                  struct LodestarRegion region,
+                                                  struct LodestarVec3 direction,
+                                                  float target,
+                                                  float pdf,
+                                                  enum LodestarUpdateOutcome *out_outcome);
+
+// Which structure the guide is (one of `LodestarStructure`). Thread-safe.
+//
+// # Safety
+// `guide` must be NULL or a live handle; `out_structure` NULL or writable.
+enum LodestarStatus lodestar_guide_structure(const struct LodestarGuide *guide,
+                                             uint32_t *out_structure);
 
 // Estimates Eq. (1)'s `∫ Q(region, ωi) fs(ωi, wo) cos θi dωi` (radiance) with the
 // guide's integral estimator, calling `eval_cos(user_data, wi, wo)` for the BSDF;
@@ -637,7 +814,7 @@ enum LodestarStatus lodestar_guide_save(const struct LodestarGuide *guide,
                                         size_t capacity,
                                         size_t *out_size);
 
-// Reads a guide saved by `lodestar_guide_save` (the bytes are copied; the buffer may
+// Reads a guide of any structure saved by `lodestar_guide_save` (the bytes are copied; the buffer may
 // be freed afterwards). A damaged, truncated or foreign buffer returns
 // `LODESTAR_STATUS_DECODE_FAILED` naming the field and byte offset.
 //

@@ -11,8 +11,18 @@ use crate::status::{guarded, Failure, LodestarStatus};
 #[repr(u32)]
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum LodestarStructure {
-    /// Probes on the surfaces, each with a hemisphere of equal-area patches.
+    /// Probes on the surfaces, each with a hemisphere of equal-area patches
+    /// (`lodestar_guide_create`).
     HemisphereGrid = 1,
+    /// Full-sphere tables at the leaves of an adaptive octree over the scene bounds
+    /// (`lodestar_guide_create_volume`).
+    IrradianceVolume = 2,
+    /// A von Mises–Fisher mixture per cell of a grid over the scene bounds
+    /// (`lodestar_guide_create_mixture`).
+    GaussianMixture = 3,
+    /// A spatial binary tree whose leaves hold directional quadtrees
+    /// (`lodestar_guide_create_tree`).
+    SpatialDirectionalTree = 4,
 }
 
 /// How a hemisphere is cut into equal-area patches (`LodestarGuideConfig.mapping`).
@@ -102,12 +112,7 @@ pub struct LodestarGuideConfig {
 impl LodestarGuideConfig {
     /// The defaults of guiding-core's hemisphere grid.
     pub(crate) fn from_settings(s: &HemisphereGridSettings) -> Self {
-        let (learning_rate, learning_rate_parameter) = match s.update_rule.learning_rate {
-            LearningRate::SimpleAverage => (LodestarLearningRate::SimpleAverage, 0.0),
-            LearningRate::RegionVisits => (LodestarLearningRate::RegionVisits, 0.0),
-            LearningRate::Exponential { alpha } => (LodestarLearningRate::Exponential, alpha),
-            LearningRate::Global { exponent } => (LodestarLearningRate::Global, exponent),
-        };
+        let (learning_rate, learning_rate_parameter, integral_estimator) = update_rule_to_c(&s.update_rule);
         Self {
             struct_size: size_of::<Self>() as u32,
             structure: LodestarStructure::HemisphereGrid as u32,
@@ -125,15 +130,9 @@ impl LodestarGuideConfig {
             q_floor: s.q_floor,
             uniform_mix: s.uniform_mix,
             sampling_exponent: s.sampling_exponent,
-            learning_rate: learning_rate as u32,
+            learning_rate,
             learning_rate_parameter,
-            integral_estimator: match s.update_rule.integral {
-                IntegralEstimator::BsdfWeightedSum => LodestarIntegralEstimator::BsdfWeightedSum,
-                IntegralEstimator::StratifiedPatches => LodestarIntegralEstimator::StratifiedPatches,
-                IntegralEstimator::MaxEntry => LodestarIntegralEstimator::MaxEntry,
-                IntegralEstimator::BsdfSampled => LodestarIntegralEstimator::BsdfSampled,
-                IntegralEstimator::PathContinuation => LodestarIntegralEstimator::PathContinuation,
-            } as u32,
+            integral_estimator,
         }
     }
 
@@ -141,51 +140,27 @@ impl LodestarGuideConfig {
     /// checked here, ranges by guiding-core.
     pub(crate) fn settings(&self) -> Result<HemisphereGridSettings, Failure> {
         check_struct_size(self.struct_size, size_of::<Self>(), "LodestarGuideConfig")?;
-        let unknown = |field: &str, value: u32, known: &str| {
-            Failure::new(LodestarStatus::UnknownEnumValue, format!("`config->{field}` = {value} is not one of {known}"))
-        };
         if self.structure != LodestarStructure::HemisphereGrid as u32 {
-            return Err(unknown("structure", self.structure, "LodestarStructure (HEMISPHERE_GRID = 1)"));
+            return Err(unknown(
+                "structure",
+                self.structure,
+                "LodestarStructure (HEMISPHERE_GRID = 1; the others have their own create calls)",
+            ));
         }
         let mapping = match self.mapping {
             0 => HemisphereMapping::Cylindrical,
             1 => HemisphereMapping::ConcentricSquare,
             other => return Err(unknown("mapping", other, "LodestarMapping (0, 1)")),
         };
-        let parameter = finite(self.learning_rate_parameter, "config->learning_rate_parameter")?;
-        let learning_rate = match self.learning_rate {
-            0 => LearningRate::SimpleAverage,
-            1 => LearningRate::RegionVisits,
-            2 => LearningRate::Exponential { alpha: parameter },
-            3 => LearningRate::Global { exponent: parameter },
-            other => return Err(unknown("learning_rate", other, "LodestarLearningRate (0..=3)")),
-        };
-        let integral = match self.integral_estimator {
-            0 => IntegralEstimator::BsdfWeightedSum,
-            1 => IntegralEstimator::StratifiedPatches,
-            2 => IntegralEstimator::MaxEntry,
-            3 => IntegralEstimator::BsdfSampled,
-            4 => IntegralEstimator::PathContinuation,
-            other => return Err(unknown("integral_estimator", other, "LodestarIntegralEstimator (0..=4)")),
-        };
-        let two_sided = match self.two_sided {
-            0 => false,
-            1 => true,
-            other => {
-                return Err(Failure::new(
-                    LodestarStatus::InvalidArgument,
-                    format!("`config->two_sided` = {other} must be 0 or 1"),
-                ))
-            }
-        };
-        let too_large = |field: &str, value: u64| {
-            Failure::new(LodestarStatus::InvalidConfig, format!("`config->{field}` = {value} is too large"))
-        };
-        let budget_bytes =
-            usize::try_from(self.budget_bytes).map_err(|_| too_large("budget_bytes", self.budget_bytes))?;
+        let update_rule =
+            update_rule_from_c(self.learning_rate, self.learning_rate_parameter, self.integral_estimator)?;
+        let two_sided = flag(self.two_sided, "two_sided")?;
+        let budget_bytes = budget(self.budget_bytes)?;
         let probe_count = match self.region_count {
             0 => None,
-            n => Some(usize::try_from(n).map_err(|_| too_large("region_count", n))?),
+            n => Some(usize::try_from(n).map_err(|_| {
+                Failure::new(LodestarStatus::InvalidConfig, format!("`config->region_count` = {n} is too large"))
+            })?),
         };
         let settings = HemisphereGridSettings {
             budget_bytes,
@@ -200,11 +175,79 @@ impl LodestarGuideConfig {
             sampling_exponent: finite(self.sampling_exponent, "config->sampling_exponent")?,
             // Not in the C struct (its layout is the ABI): C callers sample by Q alone.
             cosine_product: false,
-            update_rule: UpdateRule { learning_rate, integral },
+            update_rule,
         };
         settings.validate().map_err(|e| Failure::from_core(&e, "config"))?;
         Ok(settings)
     }
+}
+
+/// `config->{field}` = `value` is not one of the `known` enum's values.
+pub(crate) fn unknown(field: &str, value: u32, known: &str) -> Failure {
+    Failure::new(LodestarStatus::UnknownEnumValue, format!("`config->{field}` = {value} is not one of {known}"))
+}
+
+/// A 0/1 config field.
+pub(crate) fn flag(value: u32, field: &str) -> Result<bool, Failure> {
+    match value {
+        0 => Ok(false),
+        1 => Ok(true),
+        other => {
+            Err(Failure::new(LodestarStatus::InvalidArgument, format!("`config->{field}` = {other} must be 0 or 1")))
+        }
+    }
+}
+
+/// A byte budget that fits this machine's `usize`.
+pub(crate) fn budget(bytes: u64) -> Result<usize, Failure> {
+    usize::try_from(bytes).map_err(|_| {
+        Failure::new(LodestarStatus::InvalidConfig, format!("`config->budget_bytes` = {bytes} is too large"))
+    })
+}
+
+/// A grid resolution of three cell counts; all zero asks the structure to size it.
+pub(crate) fn resolution(cells: [u32; 3]) -> Option<[u32; 3]> {
+    (cells != [0; 3]).then_some(cells)
+}
+
+/// The C fields (`learning_rate`, `learning_rate_parameter`, `integral_estimator`) of
+/// an update rule.
+pub(crate) fn update_rule_to_c(rule: &UpdateRule) -> (u32, f32, u32) {
+    let (learning_rate, parameter) = match rule.learning_rate {
+        LearningRate::SimpleAverage => (LodestarLearningRate::SimpleAverage, 0.0),
+        LearningRate::RegionVisits => (LodestarLearningRate::RegionVisits, 0.0),
+        LearningRate::Exponential { alpha } => (LodestarLearningRate::Exponential, alpha),
+        LearningRate::Global { exponent } => (LodestarLearningRate::Global, exponent),
+    };
+    let integral = match rule.integral {
+        IntegralEstimator::BsdfWeightedSum => LodestarIntegralEstimator::BsdfWeightedSum,
+        IntegralEstimator::StratifiedPatches => LodestarIntegralEstimator::StratifiedPatches,
+        IntegralEstimator::MaxEntry => LodestarIntegralEstimator::MaxEntry,
+        IntegralEstimator::BsdfSampled => LodestarIntegralEstimator::BsdfSampled,
+        IntegralEstimator::PathContinuation => LodestarIntegralEstimator::PathContinuation,
+    };
+    (learning_rate as u32, parameter, integral as u32)
+}
+
+/// The update rule the C fields ask for (ranges are checked by guiding-core).
+pub(crate) fn update_rule_from_c(learning_rate: u32, parameter: f32, integral: u32) -> Result<UpdateRule, Failure> {
+    let parameter = finite(parameter, "config->learning_rate_parameter")?;
+    let learning_rate = match learning_rate {
+        0 => LearningRate::SimpleAverage,
+        1 => LearningRate::RegionVisits,
+        2 => LearningRate::Exponential { alpha: parameter },
+        3 => LearningRate::Global { exponent: parameter },
+        other => return Err(unknown("learning_rate", other, "LodestarLearningRate (0..=3)")),
+    };
+    let integral = match integral {
+        0 => IntegralEstimator::BsdfWeightedSum,
+        1 => IntegralEstimator::StratifiedPatches,
+        2 => IntegralEstimator::MaxEntry,
+        3 => IntegralEstimator::BsdfSampled,
+        4 => IntegralEstimator::PathContinuation,
+        other => return Err(unknown("integral_estimator", other, "LodestarIntegralEstimator (0..=4)")),
+    };
+    Ok(UpdateRule { learning_rate, integral })
 }
 
 /// Fills `out_config` with the defaults: a hemisphere grid of 8 × 16 cylindrical patches

@@ -4,26 +4,22 @@ use std::cell::Cell;
 use std::ffi::c_void;
 
 use glam::{Vec2, Vec3};
-use guiding_core::{Guide, HemisphereGrid, Lambertian, ProbeId, ScatteringFunction, Triangle};
+use guiding_core::{Guide, HemisphereGrid, Lambertian, ScatteringFunction, Triangle};
 
 use crate::arguments::{borrow, direction, finite, point, slice, uniform, Output};
-use crate::config::LodestarGuideConfig;
+use crate::config::{LodestarGuideConfig, LodestarStructure};
 use crate::status::{guarded, Failure, LodestarStatus};
+use crate::structure::{with_structure, CRegions, GuideStructure};
 use crate::types::{
     LodestarDirectionSample, LodestarGuideStats, LodestarRegion, LodestarUpdateOutcome, LodestarVec3,
     LODESTAR_NO_REGION,
 };
 
-/// An opaque guide: create with `lodestar_guide_create` or
-/// `lodestar_guide_load`, free with
-/// `lodestar_guide_release`.
+/// An opaque guide of any structure: create with `lodestar_guide_create` (a hemisphere
+/// grid over a mesh), `lodestar_guide_create_volume`, `_mixture` or `_tree` (over scene
+/// bounds), or `lodestar_guide_load`; free with `lodestar_guide_release`.
 pub struct LodestarGuide {
     pub(crate) structure: GuideStructure,
-}
-
-/// The structures a handle can hold; every call dispatches on it.
-pub(crate) enum GuideStructure {
-    Hemisphere(HemisphereGrid),
 }
 
 impl LodestarGuide {
@@ -32,29 +28,11 @@ impl LodestarGuide {
     }
 
     fn stats(&self) -> guiding_core::GuideStats {
-        match &self.structure {
-            GuideStructure::Hemisphere(grid) => grid.stats(),
-        }
+        with_structure!(&self.structure, g => g.stats())
     }
 
     pub(crate) fn to_bytes(&self) -> Vec<u8> {
-        match &self.structure {
-            GuideStructure::Hemisphere(grid) => grid.to_bytes(),
-        }
-    }
-
-    /// The grid's probe for a region the caller handed back, checked against this guide.
-    fn probe(grid: &HemisphereGrid, region: LodestarRegion) -> Result<ProbeId, Failure> {
-        if (region.index as usize) < grid.probe_count() {
-            Ok(ProbeId(region.index))
-        } else {
-            let why = if region.index == LODESTAR_NO_REGION {
-                "LODESTAR_NO_REGION (locate found none: sample the BSDF alone)".to_string()
-            } else {
-                format!("past this guide's {} regions", grid.probe_count())
-            };
-            Err(Failure::new(LodestarStatus::InvalidRegion, format!("`region.index` = {} is {why}", region.index)))
-        }
+        with_structure!(&self.structure, g => g.to_bytes())
     }
 }
 
@@ -153,10 +131,9 @@ pub unsafe extern "C" fn lodestar_guide_locate(
         let out = unsafe { Output::new(out_region, "out_region") }?;
         let position = point(position, "position")?;
         let normal = direction(normal, "normal")?;
-        let index = match &guide.structure {
-            GuideStructure::Hemisphere(grid) => grid.locate(position, normal).map_or(LODESTAR_NO_REGION, |p| p.0),
-        };
-        out.write(LodestarRegion { index });
+        let none = LodestarRegion { index: LODESTAR_NO_REGION, flags: 0, normal: normal.into() };
+        let region = with_structure!(&guide.structure, g => g.locate(position, normal).map_or(none, |r| g.to_c(r)));
+        out.write(region);
         Ok(())
     })
 }
@@ -179,9 +156,7 @@ pub unsafe extern "C" fn lodestar_guide_sample(
         let guide = unsafe { shared(guide) }?;
         let out = unsafe { Output::new(out_sample, "out_sample") }?;
         let u = Vec2::new(uniform(u0, "u0")?, uniform(u1, "u1")?);
-        let sample = match &guide.structure {
-            GuideStructure::Hemisphere(grid) => grid.sample(LodestarGuide::probe(grid, region)?, u),
-        };
+        let sample = with_structure!(&guide.structure, g => g.sample(g.region(region)?, u));
         out.write(LodestarDirectionSample { direction: sample.direction.into(), pdf: sample.pdf });
         Ok(())
     })
@@ -204,9 +179,7 @@ pub unsafe extern "C" fn lodestar_guide_pdf(
         let guide = unsafe { shared(guide) }?;
         let out = unsafe { Output::new(out_pdf, "out_pdf") }?;
         let wi = self::direction(direction, "direction")?;
-        let pdf = match &guide.structure {
-            GuideStructure::Hemisphere(grid) => grid.pdf(LodestarGuide::probe(grid, region)?, wi),
-        };
+        let pdf = with_structure!(&guide.structure, g => g.pdf(g.region(region)?, wi));
         out.write(pdf);
         Ok(())
     })
@@ -233,10 +206,61 @@ pub unsafe extern "C" fn lodestar_guide_update(
         let guide = unsafe { shared(guide) }?;
         let out = unsafe { Output::new(out_outcome, "out_outcome") }?;
         let wi = self::direction(direction, "direction")?;
-        let outcome = match &guide.structure {
-            GuideStructure::Hemisphere(grid) => grid.update(LodestarGuide::probe(grid, region)?, wi, target),
-        };
+        let outcome = with_structure!(&guide.structure, g => g.update(g.region(region)?, wi, target));
         out.write(LodestarUpdateOutcome::from_core(outcome, "target", target)?);
+        Ok(())
+    })
+}
+
+/// `lodestar_guide_update` for a direction the renderer drew with density `pdf` (per
+/// steradian, > 0: the whole mixture's where guide and BSDF were mixed), so what is
+/// learned does not depend on how directions were drawn. The tree learns only this way
+/// (its plain update assumes a uniform density). Thread-safe (lock-free).
+///
+/// # Safety
+/// `guide` must be NULL or a live handle; `out_outcome` NULL or writable.
+#[no_mangle]
+pub unsafe extern "C" fn lodestar_guide_update_sampled(
+    guide: *const LodestarGuide,
+    region: LodestarRegion,
+    direction: LodestarVec3,
+    target: f32,
+    pdf: f32,
+    out_outcome: *mut LodestarUpdateOutcome,
+) -> LodestarStatus {
+    guarded("lodestar_guide_update_sampled", || {
+        // SAFETY (both): the caller's contract.
+        let guide = unsafe { shared(guide) }?;
+        let out = unsafe { Output::new(out_outcome, "out_outcome") }?;
+        let wi = self::direction(direction, "direction")?;
+        if finite(pdf, "pdf")? <= 0.0 {
+            return Err(Failure::new(LodestarStatus::InvalidArgument, format!("`pdf` = {pdf} is not positive")));
+        }
+        let outcome = with_structure!(&guide.structure, g => g.update_sampled(g.region(region)?, wi, target, pdf));
+        out.write(LodestarUpdateOutcome::from_core(outcome, "target", target)?);
+        Ok(())
+    })
+}
+
+/// Which structure the guide is (one of `LodestarStructure`). Thread-safe.
+///
+/// # Safety
+/// `guide` must be NULL or a live handle; `out_structure` NULL or writable.
+#[no_mangle]
+pub unsafe extern "C" fn lodestar_guide_structure(
+    guide: *const LodestarGuide,
+    out_structure: *mut u32,
+) -> LodestarStatus {
+    guarded("lodestar_guide_structure", || {
+        // SAFETY (both): the caller's contract.
+        let guide = unsafe { shared(guide) }?;
+        let out = unsafe { Output::new(out_structure, "out_structure") }?;
+        out.write(match guide.structure {
+            GuideStructure::Hemisphere(_) => LodestarStructure::HemisphereGrid,
+            GuideStructure::Volume(_) => LodestarStructure::IrradianceVolume,
+            GuideStructure::Mixture(_) => LodestarStructure::GaussianMixture,
+            GuideStructure::Tree(_) => LodestarStructure::SpatialDirectionalTree,
+        } as u32);
         Ok(())
     })
 }
@@ -276,11 +300,7 @@ fn estimate<S: ScatteringFunction>(
     bsdf: &S,
     u: Vec2,
 ) -> Result<f32, Failure> {
-    match &guide.structure {
-        GuideStructure::Hemisphere(grid) => {
-            Ok(grid.estimate_integral(LodestarGuide::probe(grid, region)?, wo, bsdf, u))
-        }
-    }
+    with_structure!(&guide.structure, g => Ok(g.estimate_integral(g.region(region)?, wo, bsdf, u)))
 }
 
 /// Estimates Eq. (1)'s `∫ Q(region, ωi) fs(ωi, wo) cos θi dωi` (radiance) with the
@@ -368,9 +388,7 @@ pub unsafe extern "C" fn lodestar_guide_rebuild(guide: *mut LodestarGuide) -> Lo
         // SAFETY: the caller's contract; checked non-NULL and aligned first.
         unsafe { borrow(guide.cast_const(), "guide") }?;
         let guide = unsafe { &mut *guide };
-        match &mut guide.structure {
-            GuideStructure::Hemisphere(grid) => grid.rebuild_sampling(),
-        }
+        with_structure!(&mut guide.structure, g => g.rebuild_sampling());
         Ok(())
     })
 }
@@ -403,9 +421,7 @@ pub unsafe extern "C" fn lodestar_guide_validate(guide: *const LodestarGuide) ->
     guarded("lodestar_guide_validate", || {
         // SAFETY: the caller's contract.
         let guide = unsafe { shared(guide) }?;
-        let result = match &guide.structure {
-            GuideStructure::Hemisphere(grid) => grid.validate(),
-        };
+        let result = with_structure!(&guide.structure, g => g.validate());
         result.map_err(|e| Failure::new(LodestarStatus::InvalidState, e.to_string()))
     })
 }

@@ -23,14 +23,21 @@
 #![deny(missing_docs, unsafe_op_in_unsafe_fn)]
 
 mod arguments;
+mod bounded_guides;
 mod config;
 mod guide;
 mod light_guide;
 mod recorder;
 mod serialize;
 mod status;
+mod structure;
 mod types;
 
+pub use bounded_guides::{
+    lodestar_guide_create_mixture, lodestar_guide_create_tree, lodestar_guide_create_volume,
+    lodestar_mixture_config_default, lodestar_tree_config_default, lodestar_volume_config_default,
+    LodestarMixtureConfig, LodestarTreeConfig, LodestarVolumeConfig,
+};
 pub use config::{
     lodestar_guide_config_default, LodestarGuideConfig, LodestarIntegralEstimator, LodestarLearningRate,
     LodestarMapping, LodestarStructure,
@@ -38,7 +45,8 @@ pub use config::{
 pub use guide::{
     lodestar_guide_create, lodestar_guide_estimate_integral, lodestar_guide_estimate_integral_lambertian,
     lodestar_guide_locate, lodestar_guide_pdf, lodestar_guide_rebuild, lodestar_guide_release, lodestar_guide_sample,
-    lodestar_guide_stats, lodestar_guide_update, lodestar_guide_validate, LodestarEvalCos, LodestarGuide,
+    lodestar_guide_stats, lodestar_guide_structure, lodestar_guide_update, lodestar_guide_update_sampled,
+    lodestar_guide_validate, LodestarEvalCos, LodestarGuide,
 };
 pub use light_guide::{
     lodestar_light_guide_cell, lodestar_light_guide_config_default, lodestar_light_guide_create,

@@ -4,11 +4,12 @@
 //! through delta vertices with 1/survival, split between next-event estimation and
 //! scattering — is not re-derived in C.
 
-use guiding_core::{PathRecorder, ProbeId};
+use guiding_core::{PathRecorder, UpdateOutcome};
 
 use crate::arguments::{borrow, direction, finite, point, Output};
-use crate::guide::{GuideStructure, LodestarGuide};
+use crate::guide::LodestarGuide;
 use crate::status::{guarded, Failure, LodestarStatus};
+use crate::structure::{with_structure, CRegions};
 use crate::types::{LodestarRegion, LodestarVec3, LODESTAR_NO_REGION};
 
 /// An opaque path recorder: one per thread (its calls are not thread-safe; each thread
@@ -16,7 +17,7 @@ use crate::types::{LodestarRegion, LodestarVec3, LODESTAR_NO_REGION};
 /// `lodestar_path_recorder_release`.
 pub struct LodestarPathRecorder {
     /// Regions as the caller handed them; checked against the guide at learn.
-    path: PathRecorder<ProbeId>,
+    path: PathRecorder<LodestarRegion>,
 }
 
 /// Borrows a recorder for a call that changes it.
@@ -108,7 +109,7 @@ pub unsafe extern "C" fn lodestar_path_recorder_scattered(
             return Err(Failure::new(LodestarStatus::InvalidArgument, format!("`pdf` = {pdf} is not positive")));
         }
         let throughput = non_negative(throughput, "throughput")?;
-        let region = (region.index != LODESTAR_NO_REGION).then_some(ProbeId(region.index));
+        let region = (region.index != LODESTAR_NO_REGION).then_some(region);
         recorder.path.scattered(region, origin, wi, pdf, throughput, ());
         Ok(())
     })
@@ -208,22 +209,25 @@ pub unsafe extern "C" fn lodestar_path_recorder_learn(
         let recorder = unsafe { borrow(recorder, "recorder") }?;
         let guide = unsafe { borrow(guide, "guide") }?;
         let out = unsafe { Output::new(out_accepted, "out_accepted") }?;
-        let accepted = match &guide.structure {
-            GuideStructure::Hemisphere(grid) => {
-                let probes = grid.probe_count();
-                let stale = recorder.path.vertices().iter().enumerate().find_map(|(i, vertex)| {
-                    vertex.region.filter(|region| region.0 as usize >= probes).map(|region| (i, region.0))
-                });
-                if let Some((vertex, index)) = stale {
-                    return Err(Failure::new(
-                        LodestarStatus::InvalidRegion,
-                        format!("vertex {vertex}'s region {index} is past this guide's {probes} regions"),
-                    ));
-                }
-                recorder.path.learn(grid, true)
-            }
-        };
+        let accepted = with_structure!(&guide.structure, g => learn(&recorder.path, g)?);
         out.write(accepted);
         Ok(())
     })
+}
+
+/// Checks every recorded region against `guide`, then teaches it each target weighed by
+/// its direction's density; how many updates it stored.
+fn learn<G: CRegions>(path: &PathRecorder<LodestarRegion>, guide: &G) -> Result<usize, Failure> {
+    for (i, vertex) in path.vertices().iter().enumerate() {
+        if let Some(region) = vertex.region {
+            guide.region(region).map_err(|f| Failure::new(f.status, format!("vertex {i}: {}", f.message)))?;
+        }
+    }
+    let mut accepted = 0;
+    for (vertex, target) in path.targets() {
+        let Some(region) = vertex.region.map(|r| guide.region(r)).transpose()? else { continue };
+        accepted +=
+            (guide.update_sampled(region, vertex.direction, target, vertex.pdf) == UpdateOutcome::Accepted) as usize;
+    }
+    Ok(accepted)
 }

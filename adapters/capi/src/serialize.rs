@@ -1,10 +1,9 @@
 //! Saving a guide to a caller's byte buffer and loading it back.
 
-use guiding_core::{Guide, HemisphereGrid};
-
 use crate::arguments::{borrow, slice, Output};
-use crate::guide::{GuideStructure, LodestarGuide};
+use crate::guide::LodestarGuide;
 use crate::status::{guarded, Failure, LodestarStatus};
+use crate::structure::GuideStructure;
 
 /// The bytes `lodestar_guide_save` writes for this guide now (it grows only if the
 /// guide changes shape, which no call does). Thread-safe.
@@ -78,7 +77,7 @@ pub(crate) unsafe fn write_bytes(
     Ok(())
 }
 
-/// Reads a guide saved by `lodestar_guide_save` (the bytes are copied; the buffer may
+/// Reads a guide of any structure saved by `lodestar_guide_save` (the bytes are copied; the buffer may
 /// be freed afterwards). A damaged, truncated or foreign buffer returns
 /// `LODESTAR_STATUS_DECODE_FAILED` naming the field and byte offset.
 ///
@@ -94,8 +93,8 @@ pub unsafe extern "C" fn lodestar_guide_load(
         // SAFETY (both): the caller's contract.
         let bytes = unsafe { slice(bytes, size, "bytes") }?;
         let out = unsafe { Output::new(out_guide, "out_guide") }?;
-        let grid = HemisphereGrid::from_bytes(bytes).map_err(|e| Failure::from_core(&e, "loading"))?;
-        out.write(LodestarGuide { structure: GuideStructure::Hemisphere(grid) }.into_raw());
+        let structure = GuideStructure::from_bytes(bytes).map_err(|e| Failure::from_core(&e, "loading"))?;
+        out.write(LodestarGuide { structure }.into_raw());
         Ok(())
     })
 }

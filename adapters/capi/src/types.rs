@@ -8,7 +8,7 @@ use crate::status::{Failure, LodestarStatus};
 /// Major version of this library: incompatible ABI changes bump it.
 pub const LODESTAR_VERSION_MAJOR: u32 = 0;
 /// Minor version: compatible additions.
-pub const LODESTAR_VERSION_MINOR: u32 = 1;
+pub const LODESTAR_VERSION_MINOR: u32 = 2;
 /// Patch version: fixes.
 pub const LODESTAR_VERSION_PATCH: u32 = 0;
 /// `major·10000 + minor·100 + patch` of the header; compare with `lodestar_version`
@@ -49,13 +49,18 @@ impl From<Vec3> for LodestarVec3 {
 /// `LodestarRegion.index` when no region covers a point: sample the BSDF alone there.
 pub const LODESTAR_NO_REGION: u32 = u32::MAX;
 
-/// A located region of a guide (a probe of a hemisphere grid), valid for the guide that
-/// returned it until that guide is released.
+/// A located region of a guide, valid for the guide that returned it until that guide
+/// is released or rebuilt into a new shape: pass it back as `locate` wrote it.
 #[repr(C)]
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LodestarRegion {
-    /// The region's index, or `LODESTAR_NO_REGION`.
+    /// The region's index (a probe, a leaf, a cell), or `LODESTAR_NO_REGION`.
     pub index: u32,
+    /// Structure-private bits (the tree's half of a leaf); 0 for the others.
+    pub flags: u32,
+    /// The unit normal `locate` was given, which the volume, the mixture and the tree
+    /// fold their directions about; the hemisphere grid uses its probe's own.
+    pub normal: LodestarVec3,
 }
 
 /// A sampled direction and its density.

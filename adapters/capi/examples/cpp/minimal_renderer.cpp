@@ -194,7 +194,7 @@ float trace_path(const Scene& scene, const LodestarGuide* guide, LodestarPathRec
         }
         Vec3 x = origin + direction * t, n = scene.triangles[index].normal;
         if (dot(n, direction) > 0) n = n * -1.0f;
-        LodestarRegion region{LODESTAR_NO_REGION};
+        LodestarRegion region{LODESTAR_NO_REGION, 0, to_c(n)};
         if (guide) check(lodestar_guide_locate(guide, to_c(x), to_c(n), &region), "locate");
         // Eq. (1): beyond this vertex, the previous one learns this one's reflected Q.
         if (guide && region.index != LODESTAR_NO_REGION) {
@@ -313,7 +313,7 @@ int main(int argc, char** argv) {
     for (uint32_t r = 0; r < stats.regions; r += 7)
         for (int i = 0; i < 4; ++i) {
             LodestarDirectionSample sample;
-            check(lodestar_guide_sample(guide, LodestarRegion{r}, 0.1f + 0.2f * i, 0.3f, &sample), "sample");
+            check(lodestar_guide_sample(guide, LodestarRegion{r, 0, {0, 0, 1}}, 0.1f + 0.2f * i, 0.3f, &sample), "sample");
             before.push_back(sample);
         }
     check(lodestar_guide_release(guide), "release");
@@ -323,7 +323,7 @@ int main(int argc, char** argv) {
     for (uint32_t r = 0; r < stats.regions; r += 7)
         for (int i = 0; i < 4; ++i, ++k) {
             LodestarDirectionSample sample;
-            check(lodestar_guide_sample(guide, LodestarRegion{r}, 0.1f + 0.2f * i, 0.3f, &sample), "sample");
+            check(lodestar_guide_sample(guide, LodestarRegion{r, 0, {0, 0, 1}}, 0.1f + 0.2f * i, 0.3f, &sample), "sample");
             const LodestarDirectionSample& old = before[k];
             if (sample.pdf != old.pdf || sample.direction.x != old.direction.x ||
                 sample.direction.y != old.direction.y || sample.direction.z != old.direction.z)

@@ -1,6 +1,7 @@
 /* Every error path of Lodestar's C API, called from C: NULL pointers, NaN and infinite
  * numbers, out-of-range arguments, wrong struct sizes, unknown enum values, stale
- * regions, small and corrupted buffers, the path recorder's calls and the light guide's. Each check asserts the status code and that
+ * regions, small and corrupted buffers, the path recorder's calls, the volume, mixture and
+ * tree made over scene bounds, and the light guide's. Each check asserts the status code and that
  * lodestar_last_error() names the culprit; a final part updates one guide from four
  * threads at once. Prints one line per failed check and exits non-zero on any. */
 #include <math.h>
@@ -112,7 +113,7 @@ static void config_errors(void) {
 static void per_vertex_errors(LodestarGuide *guide) {
     LodestarVec3 up = {0, 1, 0}, centre = {0.5f, 0, 0.5f}, zero = {0, 0, 0}, nan3 = {NAN, 0, 0};
     LodestarVec3 inf3 = {0, INFINITY, 0};
-    LodestarRegion region, none = {LODESTAR_NO_REGION}, past = {1u << 30};
+    LodestarRegion region, none = {LODESTAR_NO_REGION, 0, {0, 1, 0}}, past = {1u << 30, 0, {0, 1, 0}};
     LodestarDirectionSample sample;
     LodestarUpdateOutcome outcome;
     float value = 0, albedo = 0.5f;
@@ -196,7 +197,7 @@ static void per_vertex_errors(LodestarGuide *guide) {
 /* The path recorder: its error paths, and a recorded path that teaches the guide. */
 static void recorder_errors(LodestarGuide *guide) {
     LodestarVec3 up = {0, 1, 0}, centre = {0.5f, 0, 0.5f}, zero = {0, 0, 0}, nan3 = {NAN, 0, 0};
-    LodestarRegion region, none = {LODESTAR_NO_REGION}, past = {1u << 30};
+    LodestarRegion region, none = {LODESTAR_NO_REGION, 0, {0, 1, 0}}, past = {1u << 30, 0, {0, 1, 0}};
     LodestarPathRecorder *recorder = NULL;
     size_t accepted = 99;
 
@@ -420,6 +421,125 @@ static void light_guide_errors(void) {
     EXPECT_OK(lodestar_light_guide_release(lights));
 }
 
+/* The structures made over scene bounds (volume, mixture, tree): config and bounds
+ * errors, regions that carry the normal, sampling against the pdf, the density-weighted
+ * update, and the recorder and save/load paths the hemisphere grid runs through. */
+static void bounded_structure_errors(void) {
+    LodestarVec3 low = {0, 0, 0}, high = {1, 1, 1}, nan3 = {NAN, 0, 0}, up = {0, 1, 0};
+    LodestarVec3 inside = {0.5f, 0.25f, 0.5f}, outside = {3, 0.5f, 0.5f}, zero = {0, 0, 0};
+    for (uint32_t structure = LODESTAR_STRUCTURE_IRRADIANCE_VOLUME;
+         structure <= LODESTAR_STRUCTURE_SPATIAL_DIRECTIONAL_TREE; ++structure) {
+        LodestarGuide *guide = NULL;
+        LodestarVolumeConfig volume;
+        LodestarMixtureConfig mixture;
+        LodestarTreeConfig tree;
+        if (structure == LODESTAR_STRUCTURE_IRRADIANCE_VOLUME) {
+            EXPECT(lodestar_volume_config_default(NULL), LODESTAR_STATUS_NULL_ARGUMENT, "out_config");
+            EXPECT_OK(lodestar_volume_config_default(&volume));
+            volume.budget_bytes = 256 << 10;
+            volume.struct_size = 8;
+            EXPECT(lodestar_guide_create_volume(&volume, low, high, &guide), LODESTAR_STATUS_WRONG_STRUCT_SIZE,
+                   "LodestarVolumeConfig");
+            volume.struct_size = sizeof volume;
+            volume.sphere_resolution[0] = 0;
+            EXPECT(lodestar_guide_create_volume(&volume, low, high, &guide), LODESTAR_STATUS_INVALID_CONFIG, "");
+            volume.sphere_resolution[0] = 16;
+            volume.learning_rate = 9;
+            EXPECT(lodestar_guide_create_volume(&volume, low, high, &guide), LODESTAR_STATUS_UNKNOWN_ENUM_VALUE,
+                   "learning_rate");
+            volume.learning_rate = LODESTAR_LEARNING_RATE_SIMPLE_AVERAGE;
+            EXPECT(lodestar_guide_create_volume(NULL, low, high, &guide), LODESTAR_STATUS_NULL_ARGUMENT, "config");
+            EXPECT(lodestar_guide_create_volume(&volume, nan3, high, &guide), LODESTAR_STATUS_NON_FINITE_ARGUMENT,
+                   "low");
+            EXPECT(lodestar_guide_create_volume(&volume, high, low, &guide), LODESTAR_STATUS_INVALID_ARGUMENT,
+                   "below");
+            EXPECT_OK(lodestar_guide_create_volume(&volume, low, high, &guide));
+        } else if (structure == LODESTAR_STRUCTURE_GAUSSIAN_MIXTURE) {
+            EXPECT_OK(lodestar_mixture_config_default(&mixture));
+            mixture.budget_bytes = 256 << 10;
+            mixture.lobes = 0;
+            EXPECT(lodestar_guide_create_mixture(&mixture, low, high, &guide), LODESTAR_STATUS_INVALID_CONFIG,
+                   "lobes");
+            mixture.lobes = 2;
+            mixture.split_by_normal = 2;
+            EXPECT(lodestar_guide_create_mixture(&mixture, low, high, &guide), LODESTAR_STATUS_INVALID_ARGUMENT,
+                   "split_by_normal");
+            mixture.split_by_normal = 1;
+            EXPECT(lodestar_guide_create_mixture(&mixture, low, high, NULL), LODESTAR_STATUS_NULL_ARGUMENT,
+                   "out_guide");
+            EXPECT_OK(lodestar_guide_create_mixture(&mixture, low, high, &guide));
+        } else {
+            EXPECT_OK(lodestar_tree_config_default(&tree));
+            tree.budget_bytes = 1 << 20;
+            tree.min_split_records = 8;
+            tree.flux_fraction = NAN;
+            EXPECT(lodestar_guide_create_tree(&tree, low, high, &guide), LODESTAR_STATUS_NON_FINITE_ARGUMENT,
+                   "flux_fraction");
+            tree.flux_fraction = 0.01f;
+            tree.integral_estimator = 7;
+            EXPECT(lodestar_guide_create_tree(&tree, low, high, &guide), LODESTAR_STATUS_UNKNOWN_ENUM_VALUE,
+                   "integral_estimator");
+            tree.integral_estimator = LODESTAR_INTEGRAL_ESTIMATOR_PATH_CONTINUATION;
+            EXPECT_OK(lodestar_guide_create_tree(&tree, low, high, &guide));
+        }
+        uint32_t found = 0;
+        EXPECT(lodestar_guide_structure(guide, NULL), LODESTAR_STATUS_NULL_ARGUMENT, "out_structure");
+        EXPECT_OK(lodestar_guide_structure(guide, &found));
+        TRUTH(found == structure);
+
+        LodestarRegion region, spoiled;
+        EXPECT_OK(lodestar_guide_locate(guide, outside, up, &region)); /* the nearest region */
+        TRUTH(region.index != LODESTAR_NO_REGION);
+        EXPECT(lodestar_guide_locate(guide, outside, zero, &region), LODESTAR_STATUS_INVALID_ARGUMENT, "normal");
+        EXPECT_OK(lodestar_guide_locate(guide, inside, up, &region));
+        TRUTH(region.index != LODESTAR_NO_REGION && region.normal.y == 1.0f);
+        LodestarDirectionSample sample;
+        float pdf = 0;
+        spoiled = region;
+        spoiled.normal = zero;
+        EXPECT(lodestar_guide_sample(guide, spoiled, 0.5f, 0.5f, &sample), LODESTAR_STATUS_INVALID_REGION,
+               "region.normal");
+        spoiled.normal = nan3;
+        EXPECT(lodestar_guide_pdf(guide, spoiled, up, &pdf), LODESTAR_STATUS_INVALID_REGION, "region.normal");
+        for (int i = 0; i < 8; ++i) {
+            EXPECT_OK(lodestar_guide_sample(guide, region, (i + 0.5f) / 8, 0.3f, &sample));
+            EXPECT_OK(lodestar_guide_pdf(guide, region, sample.direction, &pdf));
+            TRUTH(sample.pdf > 0 && fabsf(pdf - sample.pdf) <= 1e-3f * sample.pdf);
+        }
+
+        LodestarUpdateOutcome outcome;
+        EXPECT(lodestar_guide_update_sampled(guide, region, up, 1.0f, 0.0f, &outcome),
+               LODESTAR_STATUS_INVALID_ARGUMENT, "pdf");
+        EXPECT(lodestar_guide_update_sampled(guide, region, up, 1.0f, NAN, &outcome),
+               LODESTAR_STATUS_NON_FINITE_ARGUMENT, "pdf");
+        EXPECT(lodestar_guide_update_sampled(guide, region, up, NAN, 1.0f, &outcome),
+               LODESTAR_STATUS_NON_FINITE_ARGUMENT, "target");
+        EXPECT(lodestar_guide_update_sampled(NULL, region, up, 1.0f, 1.0f, &outcome), LODESTAR_STATUS_NULL_ARGUMENT,
+               "guide");
+        /* Light from above, learned over a few passes; the guide then favours up. */
+        for (int pass = 0; pass < 4; ++pass) {
+            for (int i = 0; i < 256; ++i) {
+                EXPECT_OK(lodestar_guide_sample(guide, region, (i + 0.5f) / 256, (i % 16 + 0.5f) / 16, &sample));
+                float target = sample.direction.y > 0.9f ? 10.0f : 0.1f;
+                EXPECT_OK(lodestar_guide_update_sampled(guide, region, sample.direction, target, sample.pdf,
+                                                        &outcome));
+            }
+            EXPECT_OK(lodestar_guide_rebuild(guide));
+            EXPECT_OK(lodestar_guide_locate(guide, inside, up, &region));
+        }
+        EXPECT_OK(lodestar_guide_validate(guide));
+        float pdf_up = 0, pdf_side = 0;
+        LodestarVec3 side = {1, 0.05f, 0};
+        EXPECT_OK(lodestar_guide_pdf(guide, region, up, &pdf_up));
+        EXPECT_OK(lodestar_guide_pdf(guide, region, side, &pdf_side));
+        TRUTH(pdf_up > 2 * pdf_side);
+
+        recorder_errors(guide);
+        buffer_errors(guide);
+        EXPECT_OK(lodestar_guide_release(guide));
+    }
+}
+
 int main(void) {
     TRUTH(lodestar_version() == LODESTAR_VERSION);
     config_errors();
@@ -433,6 +553,7 @@ int main(void) {
     buffer_errors(guide);
     concurrent_updates(guide);
     EXPECT_OK(lodestar_guide_release(guide));
+    bounded_structure_errors();
     light_guide_errors();
     printf("api_errors: %d of %d checks passed\n", checks - failures, checks);
     return failures == 0 ? 0 : 1;
