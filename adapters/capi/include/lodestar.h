@@ -185,6 +185,12 @@ typedef uint32_t LodestarLightRule;
 #endif // __STDC_VERSION__ >= 202311L
 #endif // __cplusplus
 
+// An opaque environment guide. Create with `lodestar_env_guide_create` (or load), free
+// with `lodestar_env_guide_release`. `cell`, `sample`, `pdf`, `update`, `save` are
+// lock-free and may run from any number of threads at once; `rebuild` and `release`
+// need the guide to themselves.
+typedef struct LodestarEnvGuide LodestarEnvGuide;
+
 // An opaque guide of any structure: create with `lodestar_guide_create` (a hemisphere
 // grid over a mesh), `lodestar_guide_create_volume`, `_mixture` or `_tree` (over scene
 // bounds), or `lodestar_guide_load`; free with `lodestar_guide_release`.
@@ -336,6 +342,46 @@ typedef struct LodestarGuideConfig {
   uint32_t integral_estimator;
 } LodestarGuideConfig;
 
+// Everything that shapes an environment guide. Fill it with
+// `lodestar_env_guide_config_default`, then change what you need.
+typedef struct LodestarEnvGuideConfig {
+  // `sizeof(LodestarEnvGuideConfig)`: set by the default call.
+  uint32_t struct_size;
+  // Share of each cell's lobe probability in proportion to the lobes' power, [0, 1].
+  float power_mix;
+  // Memory budget for the per-cell tables, bytes; sets the grid unless `resolution` does.
+  uint64_t budget_bytes;
+  // Cells along x, y and z; all three 0 fills the budget with near-cubic cells.
+  uint32_t resolution[3];
+  // Tiles across (azimuth) and down (elevation) the latitude-longitude map.
+  uint32_t tiles[2];
+  // Share spread uniformly over the lobes with power, (0, 1].
+  float uniform_mix;
+} LodestarEnvGuideConfig;
+
+// A sun: a disk of uniform luminance seen from every point of the scene.
+typedef struct LodestarSunDisk {
+  // Unit direction towards its centre, world space (normalised here).
+  struct LodestarVec3 direction;
+  // Its angular radius, radians, in (0, π/2).
+  float angular_radius;
+  // Its luminance (radiance), > 0.
+  float luminance;
+} LodestarSunDisk;
+
+// A direction towards the environment drawn by `lodestar_env_guide_sample`.
+typedef struct LodestarEnvSample {
+  // Unit direction, world space.
+  struct LodestarVec3 direction;
+  // Its density under the cell's whole distribution, per steradian (for MIS).
+  float pdf;
+  // The lobe it came from (a tile, or the sun as the last lobe): pass the sample to
+  // `lodestar_env_guide_update` as it is.
+  uint32_t lobe;
+  // Its density given that lobe, per steradian.
+  float lobe_pdf;
+} LodestarEnvSample;
+
 // A located region of a guide, valid for the guide that returned it until that guide
 // is released or rebuilt into a new shape: pass it back as `locate` wrote it.
 typedef struct LodestarRegion {
@@ -463,6 +509,119 @@ enum LodestarStatus lodestar_guide_create_tree(const struct LodestarTreeConfig *
 // # Safety
 // `out_config` must be NULL or point to writable memory for a `LodestarGuideConfig`.
 enum LodestarStatus lodestar_guide_config_default(struct LodestarGuideConfig *out_config);
+
+// Fills `out_config` with guiding-core's environment guide defaults (1 MiB, 32 × 16
+// tiles, power share 0.1, uniform share 0.01).
+//
+// # Safety
+// `out_config` must be NULL or writable for a `LodestarEnvGuideConfig`.
+enum LodestarStatus lodestar_env_guide_config_default(struct LodestarEnvGuideConfig *out_config);
+
+// Creates an environment guide over the box `low`..`high` (scene units) for a
+// latitude-longitude map of `width × height` texels whose `luminance` (row by row from
+// the top, +y up; finite, ≥ 0) it samples, and an optional `sun` (NULL: none).
+// `*out_guide` owns it; it keeps no pointer to the arrays.
+//
+// # Safety
+// `config` NULL or readable; `luminance` NULL or readable for `width·height` floats;
+// `sun` NULL or readable; `out_guide` NULL or writable.
+enum LodestarStatus lodestar_env_guide_create(const struct LodestarEnvGuideConfig *config,
+                                              struct LodestarVec3 low,
+                                              struct LodestarVec3 high,
+                                              const float *luminance,
+                                              size_t width,
+                                              size_t height,
+                                              const struct LodestarSunDisk *sun,
+                                              struct LodestarEnvGuide **out_guide);
+
+// Frees an environment guide; the handle must not be used afterwards.
+//
+// # Safety
+// `guide` must be NULL or a live handle no other call is using.
+enum LodestarStatus lodestar_env_guide_release(struct LodestarEnvGuide *guide);
+
+// The cell holding `position` (points outside the bounds use the nearest cell).
+//
+// # Safety
+// `guide` must be NULL or a live handle; `out_cell` NULL or writable.
+enum LodestarStatus lodestar_env_guide_cell(const struct LodestarEnvGuide *guide,
+                                            struct LodestarVec3 position,
+                                            uint32_t *out_cell);
+
+// Draws a direction towards the environment from `cell` with three uniform numbers in
+// [0, 1]: `u_lobe` picks the tile (or the sun), `u0`, `u1` the direction in it.
+//
+// # Safety
+// `guide` must be NULL or a live handle; `out_sample` NULL or writable.
+enum LodestarStatus lodestar_env_guide_sample(const struct LodestarEnvGuide *guide,
+                                              uint32_t cell,
+                                              float u_lobe,
+                                              float u0,
+                                              float u1,
+                                              struct LodestarEnvSample *out_sample);
+
+// The density (per steradian) with which `cell` draws `direction` (normalised here): what
+// MIS needs for environment light found by scattering.
+//
+// # Safety
+// `guide` must be NULL or a live handle; `out_pdf` NULL or writable.
+enum LodestarStatus lodestar_env_guide_pdf(const struct LodestarEnvGuide *guide,
+                                           uint32_t cell,
+                                           struct LodestarVec3 direction,
+                                           float *out_pdf);
+
+// Learns from a shadow ray drawn by `lodestar_env_guide_sample` from `cell`:
+// `integrand` is ‖f·L·cos θ‖∞ times its visibility (0 where it was occluded), with L
+// the radiance of the sample's lobe alone, not divided by any pdf. A NaN or infinite
+// integrand is `LODESTAR_STATUS_NON_FINITE_ARGUMENT`, a negative one
+// `LODESTAR_STATUS_INVALID_ARGUMENT`; neither is learned, both are counted.
+// Thread-safe (lock-free).
+//
+// # Safety
+// `guide` must be NULL or a live handle; `sample` NULL or readable; `out_outcome` NULL
+// or writable.
+enum LodestarStatus lodestar_env_guide_update(const struct LodestarEnvGuide *guide,
+                                              uint32_t cell,
+                                              const struct LodestarEnvSample *sample,
+                                              float integrand,
+                                              enum LodestarUpdateOutcome *out_outcome);
+
+// Rebuilds every cell's lobe probabilities from what it learned. Call between passes:
+// no other call on this guide may be in flight.
+//
+// # Safety
+// `guide` must be NULL or a live handle no other call is using.
+enum LodestarStatus lodestar_env_guide_rebuild(struct LodestarEnvGuide *guide);
+
+// Writes what the guide learned (versioned, checksummed, with a fingerprint of the
+// environment; the map itself is the caller's and is not stored) to `buffer` and its
+// length to `*out_size`; with `buffer` NULL and `capacity` 0 only the size is written.
+// When `capacity` is too small nothing is written to `buffer`, `*out_size` receives the
+// size needed and the call returns `LODESTAR_STATUS_BUFFER_TOO_SMALL`.
+//
+// # Safety
+// `guide` must be NULL or a live handle; `buffer` NULL or writable for `capacity`
+// bytes; `out_size` NULL or writable.
+enum LodestarStatus lodestar_env_guide_save(const struct LodestarEnvGuide *guide,
+                                            uint8_t *buffer,
+                                            size_t capacity,
+                                            size_t *out_size);
+
+// Reads an environment guide saved by `lodestar_env_guide_save` for the same map and
+// sun it learned (`config->tiles` as it was created with): another environment is
+// `LODESTAR_STATUS_INVALID_ARGUMENT` naming it, a damaged buffer
+// `LODESTAR_STATUS_DECODE_FAILED`.
+//
+// # Safety
+// As `lodestar_env_guide_create`, and `bytes` NULL or readable for `size` bytes.
+enum LodestarStatus lodestar_env_guide_load(const struct LodestarEnvGuideConfig *config,
+                                            const uint8_t *bytes,
+                                            size_t size,
+                                            const float *luminance,
+                                            size_t width,
+                                            size_t height,
+                                            const struct LodestarSunDisk *sun,
+                                            struct LodestarEnvGuide **out_guide);
 
 // Creates a guide over a triangle mesh: `vertex_count` positions (3 floats each, scene
 // units) and `triangle_count` triangles (3 indices each, counter-clockwise seen from

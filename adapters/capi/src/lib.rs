@@ -18,13 +18,15 @@
 //! belongs to one thread at a time. The error message is kept per thread.
 //!
 //! A `LodestarLightGuide` (learned light selection for next-event estimation, Eq. 3)
-//! follows the same rules: `cell`, `select`, `probability`, `update` and `save` from
-//! any thread, `rebuild` and `release` alone.
+//! and a `LodestarEnvGuide` (learned environment sampling, per tile of the map and the
+//! sun) follow the same rules: their per-vertex calls and `save` from any thread,
+//! `rebuild` and `release` alone.
 #![deny(missing_docs, unsafe_op_in_unsafe_fn)]
 
 mod arguments;
 mod bounded_guides;
 mod config;
+mod env_guide;
 mod guide;
 mod light_guide;
 mod recorder;
@@ -41,6 +43,12 @@ pub use bounded_guides::{
 pub use config::{
     lodestar_guide_config_default, LodestarGuideConfig, LodestarIntegralEstimator, LodestarLearningRate,
     LodestarMapping, LodestarStructure,
+};
+pub use env_guide::{
+    lodestar_env_guide_cell, lodestar_env_guide_config_default, lodestar_env_guide_create, lodestar_env_guide_load,
+    lodestar_env_guide_pdf, lodestar_env_guide_rebuild, lodestar_env_guide_release, lodestar_env_guide_sample,
+    lodestar_env_guide_save, lodestar_env_guide_update, LodestarEnvGuide, LodestarEnvGuideConfig, LodestarEnvSample,
+    LodestarSunDisk,
 };
 pub use guide::{
     lodestar_guide_create, lodestar_guide_estimate_integral, lodestar_guide_estimate_integral_lambertian,

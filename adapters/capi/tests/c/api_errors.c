@@ -1,7 +1,7 @@
 /* Every error path of Lodestar's C API, called from C: NULL pointers, NaN and infinite
  * numbers, out-of-range arguments, wrong struct sizes, unknown enum values, stale
  * regions, small and corrupted buffers, the path recorder's calls, the volume, mixture and
- * tree made over scene bounds, and the light guide's. Each check asserts the status code and that
+ * tree made over scene bounds, and the light and environment guides'. Each check asserts the status code and that
  * lodestar_last_error() names the culprit; a final part updates one guide from four
  * threads at once. Prints one line per failed check and exits non-zero on any. */
 #include <math.h>
@@ -540,6 +540,118 @@ static void bounded_structure_errors(void) {
     }
 }
 
+/* The environment guide: config, map and sun errors, sampling against the pdf, learning
+ * that only the sky above arrives, and save/load for the same map (another is refused). */
+static void env_guide_errors(void) {
+    enum { W = 16, H = 8 };
+    float luminance[W * H];
+    for (int i = 0; i < W * H; ++i) luminance[i] = 1.0f;
+    LodestarVec3 low = {0, 0, 0}, high = {2, 2, 2}, inside = {1, 1, 1};
+    LodestarSunDisk sun = {{0.3f, 0.9f, 0.1f}, 0.05f, 1000.0f}, bad_sun = sun;
+    LodestarEnvGuideConfig config;
+    LodestarEnvGuide *env = NULL;
+    EXPECT(lodestar_env_guide_config_default(NULL), LODESTAR_STATUS_NULL_ARGUMENT, "out_config");
+    EXPECT_OK(lodestar_env_guide_config_default(&config));
+    config.tiles[0] = 8;
+    config.tiles[1] = 4;
+    config.budget_bytes = 64 << 10;
+    config.struct_size = 3;
+    EXPECT(lodestar_env_guide_create(&config, low, high, luminance, W, H, &sun, &env),
+           LODESTAR_STATUS_WRONG_STRUCT_SIZE, "LodestarEnvGuideConfig");
+    config.struct_size = sizeof config;
+    config.uniform_mix = NAN;
+    EXPECT(lodestar_env_guide_create(&config, low, high, luminance, W, H, &sun, &env),
+           LODESTAR_STATUS_NON_FINITE_ARGUMENT, "uniform_mix");
+    config.uniform_mix = 0.01f;
+    EXPECT(lodestar_env_guide_create(&config, low, high, NULL, W, H, &sun, &env), LODESTAR_STATUS_NULL_ARGUMENT,
+           "luminance");
+    luminance[5] = -1.0f;
+    EXPECT(lodestar_env_guide_create(&config, low, high, luminance, W, H, &sun, &env),
+           LODESTAR_STATUS_INVALID_ARGUMENT, "luminance[5]");
+    luminance[5] = 1.0f;
+    bad_sun.angular_radius = NAN;
+    EXPECT(lodestar_env_guide_create(&config, low, high, luminance, W, H, &bad_sun, &env),
+           LODESTAR_STATUS_NON_FINITE_ARGUMENT, "sun->angular_radius");
+    bad_sun = sun;
+    bad_sun.direction = low;
+    EXPECT(lodestar_env_guide_create(&config, low, high, luminance, W, H, &bad_sun, &env),
+           LODESTAR_STATUS_INVALID_ARGUMENT, "sun->direction");
+    EXPECT(lodestar_env_guide_create(&config, low, high, luminance, W, H, &sun, NULL), LODESTAR_STATUS_NULL_ARGUMENT,
+           "out_guide");
+    EXPECT_OK(lodestar_env_guide_create(&config, low, high, luminance, W, H, &sun, &env));
+
+    uint32_t cell = 99;
+    LodestarVec3 nan3 = {NAN, 0, 0};
+    EXPECT(lodestar_env_guide_cell(env, nan3, &cell), LODESTAR_STATUS_NON_FINITE_ARGUMENT, "position");
+    EXPECT_OK(lodestar_env_guide_cell(env, inside, &cell));
+    LodestarEnvSample sample;
+    float pdf = 0;
+    EXPECT(lodestar_env_guide_sample(env, 1u << 20, 0.5f, 0.5f, 0.5f, &sample), LODESTAR_STATUS_INVALID_ARGUMENT,
+           "cell");
+    EXPECT(lodestar_env_guide_sample(env, cell, 1.5f, 0.5f, 0.5f, &sample), LODESTAR_STATUS_INVALID_ARGUMENT,
+           "u_lobe");
+    for (int i = 0; i < 16; ++i) {
+        EXPECT_OK(lodestar_env_guide_sample(env, cell, (i + 0.5f) / 16, 0.3f, 0.7f, &sample));
+        EXPECT_OK(lodestar_env_guide_pdf(env, cell, sample.direction, &pdf));
+        TRUTH(sample.pdf > 0 && fabsf(pdf - sample.pdf) <= 1e-3f * sample.pdf);
+    }
+    EXPECT(lodestar_env_guide_pdf(env, cell, low, &pdf), LODESTAR_STATUS_INVALID_ARGUMENT, "direction");
+
+    LodestarUpdateOutcome outcome;
+    LodestarEnvSample spoiled = sample;
+    spoiled.lobe = 1000;
+    EXPECT(lodestar_env_guide_update(env, cell, &spoiled, 1.0f, &outcome), LODESTAR_STATUS_INVALID_ARGUMENT, "lobe");
+    spoiled = sample;
+    spoiled.lobe_pdf = 0;
+    EXPECT(lodestar_env_guide_update(env, cell, &spoiled, 1.0f, &outcome), LODESTAR_STATUS_INVALID_ARGUMENT,
+           "lobe_pdf");
+    EXPECT(lodestar_env_guide_update(env, cell, NULL, 1.0f, &outcome), LODESTAR_STATUS_NULL_ARGUMENT, "sample");
+    EXPECT(lodestar_env_guide_update(env, cell, &sample, NAN, &outcome), LODESTAR_STATUS_NON_FINITE_ARGUMENT,
+           "integrand");
+    EXPECT(lodestar_env_guide_update(env, cell, &sample, -1.0f, &outcome), LODESTAR_STATUS_INVALID_ARGUMENT,
+           "integrand");
+    /* Only sky above arrives here (walls hide the rest): up gains on down. */
+    for (int i = 0; i < 2000; ++i) {
+        EXPECT_OK(lodestar_env_guide_sample(env, cell, (i * 0.618034f) - (int)(i * 0.618034f), (i % 40 + 0.5f) / 40,
+                                            0.5f, &sample));
+        float integrand = sample.direction.y > 0.5f ? 1.0f : 0.0f;
+        EXPECT_OK(lodestar_env_guide_update(env, cell, &sample, integrand, &outcome));
+    }
+    EXPECT(lodestar_env_guide_rebuild(NULL), LODESTAR_STATUS_NULL_ARGUMENT, "guide");
+    EXPECT_OK(lodestar_env_guide_rebuild(env));
+    float pdf_up = 0, pdf_down = 0;
+    LodestarVec3 down = {0.1f, -0.9f, 0}, above = {-0.4f, 0.8f, 0.2f}; /* off the pole and the sun */
+    EXPECT_OK(lodestar_env_guide_pdf(env, cell, above, &pdf_up));
+    EXPECT_OK(lodestar_env_guide_pdf(env, cell, down, &pdf_down));
+    TRUTH(pdf_up > 5 * pdf_down && pdf_down > 0);
+
+    size_t size = 0, written = 0;
+    EXPECT_OK(lodestar_env_guide_save(env, NULL, 0, &size));
+    uint8_t *bytes = malloc(size);
+    EXPECT(lodestar_env_guide_save(env, bytes, size - 1, &written), LODESTAR_STATUS_BUFFER_TOO_SMALL, "capacity");
+    EXPECT_OK(lodestar_env_guide_save(env, bytes, size, &written));
+    LodestarEnvGuide *loaded = NULL;
+    bytes[size / 3] ^= 0x08;
+    EXPECT(lodestar_env_guide_load(&config, bytes, size, luminance, W, H, &sun, &loaded),
+           LODESTAR_STATUS_DECODE_FAILED, "checksum");
+    bytes[size / 3] ^= 0x08;
+    EXPECT(lodestar_env_guide_load(&config, bytes, size, luminance, W, H, NULL, &loaded),
+           LODESTAR_STATUS_INVALID_ARGUMENT, "environment");
+    luminance[0] = 2.0f; /* another map */
+    EXPECT(lodestar_env_guide_load(&config, bytes, size, luminance, W, H, &sun, &loaded),
+           LODESTAR_STATUS_INVALID_ARGUMENT, "environment");
+    luminance[0] = 1.0f;
+    TRUTH(loaded == NULL);
+    EXPECT_OK(lodestar_env_guide_load(&config, bytes, size, luminance, W, H, &sun, &loaded));
+    float loaded_up = 0;
+    EXPECT_OK(lodestar_env_guide_pdf(loaded, cell, above, &loaded_up));
+    TRUTH(loaded_up == pdf_up);
+    EXPECT_OK(lodestar_env_guide_release(loaded));
+    free(bytes);
+    EXPECT(lodestar_env_guide_release(NULL), LODESTAR_STATUS_NULL_ARGUMENT, "guide");
+    EXPECT_OK(lodestar_env_guide_release(env));
+}
+
 int main(void) {
     TRUTH(lodestar_version() == LODESTAR_VERSION);
     config_errors();
@@ -555,6 +667,7 @@ int main(void) {
     EXPECT_OK(lodestar_guide_release(guide));
     bounded_structure_errors();
     light_guide_errors();
+    env_guide_errors();
     printf("api_errors: %d of %d checks passed\n", checks - failures, checks);
     return failures == 0 ? 0 : 1;
 }
