@@ -32,7 +32,8 @@ pub struct SunDisk {
 
 impl SunDisk {
     /// A disk centred on `direction` (any length > 0) with the given angular radius
-    /// (radians, in (0, π/2]) and radiance luminance (finite, ≥ 0).
+    /// (radians, in [1.1·10⁻¹⁹, π/2]: smaller ones have no solid angle in f32) and
+    /// radiance luminance (finite, ≥ 0).
     pub fn new(direction: Vec3, angular_radius: f32, luminance: f32) -> Result<Self, Error> {
         let length = direction.length();
         require(direction.is_finite() && length > 0.0, "sun.direction", length as f64, "finite and non-zero")?;
@@ -42,7 +43,15 @@ impl SunDisk {
         require(luminance.is_finite() && luminance >= 0.0, "sun.luminance", luminance as f64, "finite and ≥ 0")?;
         let direction = direction / length;
         let half = libm::sinf(0.5 * angular_radius);
-        Ok(Self { frame: Frame::from_normal(direction), direction, one_minus_cos: 2.0 * half * half, luminance })
+        // A disk so small that 1 − cos rounds to 0 (or a denormal) has no finite density.
+        let one_minus_cos = 2.0 * half * half;
+        require(
+            one_minus_cos >= f32::MIN_POSITIVE,
+            "sun.angular_radius",
+            radius,
+            "at least 1.1e-19 (a solid angle f32 holds)",
+        )?;
+        Ok(Self { frame: Frame::from_normal(direction), direction, one_minus_cos, luminance })
     }
 
     /// The unit direction towards its centre.
@@ -116,6 +125,9 @@ mod tests {
         assert_eq!(name(SunDisk::new(Vec3::ZERO, 0.1, 1.0).unwrap_err()), "sun.direction");
         assert_eq!(name(SunDisk::new(Vec3::Y, 0.0, 1.0).unwrap_err()), "sun.angular_radius");
         assert_eq!(name(SunDisk::new(Vec3::Y, f32::NAN, 1.0).unwrap_err()), "sun.angular_radius");
+        // Found by the capi_calls fuzzer: a solid angle that rounds to 0 gave pdf ∞ (and NaN).
+        assert_eq!(name(SunDisk::new(Vec3::Y, 1e-30, 1.0).unwrap_err()), "sun.angular_radius");
+        assert!(SunDisk::new(Vec3::Y, 1e-18, 1.0).unwrap().pdf().is_finite());
         assert_eq!(name(SunDisk::new(Vec3::Y, 0.1, -1.0).unwrap_err()), "sun.luminance");
     }
 }

@@ -144,13 +144,17 @@ impl EnvironmentTiles {
         let (k, u_column) = sample_cdf(&self.texel_cdf[self.tile_start[t]..self.tile_start[t + 1]], u.x);
         let column = columns.start + k % columns.len();
         let row = rows.start + k / columns.len();
-        let uv = Vec2::new((column as f32 + u_column) / self.width as f32, (row as f32 + u.y) / self.height as f32);
+        // Kept off the poles, where dω = 2π² sin θ du dv has no density: a direction there
+        // would come with pdf 0 (found by the capi_calls fuzzer at u.y = 0).
+        let v = ((row as f32 + u.y) / self.height as f32).clamp(POLE_MARGIN, 1.0 - POLE_MARGIN);
+        let uv = Vec2::new((column as f32 + u_column) / self.width as f32, v);
         let direction = direction_of_uv(uv);
         (direction, self.texel_pdf(t, k, direction))
     }
 
     /// Density per steradian of [`sample_in_tile`](Self::sample_in_tile)`(t, ·)` at
-    /// direction `d` (unit): 0 outside tile t and at the poles.
+    /// direction `d` (unit): 0 outside tile t and within about 10⁻⁶ rad of the poles,
+    /// where nothing is sampled.
     #[inline]
     pub fn pdf_in_tile(&self, t: usize, d: Vec3) -> f32 {
         let (tile, k, _) = self.locate(d);
@@ -170,13 +174,23 @@ impl EnvironmentTiles {
     #[inline]
     fn texel_pdf(&self, tile: usize, k: usize, d: Vec3) -> f32 {
         let sin_theta = sin_theta(d);
-        if sin_theta <= 0.0 {
+        // Nothing is sampled this close to a pole (POLE_MARGIN), and 1/sin θ would reach ∞
+        // (and ∞·0 = NaN) there.
+        if sin_theta < MIN_SAMPLED_SIN_THETA {
             return 0.0;
         }
         let p = cdf_probability(&self.texel_cdf[self.tile_start[tile]..self.tile_start[tile + 1]], k);
         p * texel_density(self.width, self.height, sin_theta)
     }
 }
+
+/// How far in v a sampled direction stays from either pole: sin θ ≈ 3·10⁻⁶, so its
+/// density stays finite and positive in f32.
+const POLE_MARGIN: f32 = 1e-6;
+
+/// Half the least sin θ a sampled direction has (sin(π·POLE_MARGIN) ≈ 3.1·10⁻⁶): closer
+/// to a pole the density is 0.
+const MIN_SAMPLED_SIN_THETA: f32 = 1.5e-6;
 
 /// The texels `[i·n/parts, (i+1)·n/parts)` of part `i` of `n` texels cut in `parts`.
 #[inline]
@@ -248,6 +262,29 @@ mod tests {
                 assert_eq!(found, tile);
                 assert!(pdf > 0.0 && pdf == t.pdf_in_tile(tile, d) && pdf == sampled_pdf);
             }
+        }
+    }
+
+    #[test]
+    fn samples_at_the_edges_of_the_unit_square_keep_a_positive_pdf() {
+        let (w, h) = (4, 2);
+        let t = EnvironmentTiles::new(w, h, &[1.0; 8], [2, 2]).unwrap();
+        for tile in 0..t.tile_count() {
+            for u in [Vec2::ZERO, Vec2::ONE, Vec2::new(0.0, 1.0), Vec2::new(1.0, 0.0)] {
+                let (d, pdf) = t.sample_in_tile(tile, u);
+                // (u = 1 lies on the tile's far border, which rounding may put across.)
+                assert!(pdf.is_finite() && pdf > 0.0, "tile {tile}, u {u}: {d} with pdf {pdf}");
+                assert_eq!(t.tile_and_pdf(d).1, pdf);
+            }
+        }
+    }
+
+    #[test]
+    fn directions_at_and_near_the_poles_have_a_finite_pdf() {
+        let t = EnvironmentTiles::new(4, 2, &[1.0; 8], [2, 2]).unwrap();
+        for d in [Vec3::Y, Vec3::NEG_Y, Vec3::new(1e-40, 1.0, 0.0), Vec3::new(0.0, -1.0, 1e-7)] {
+            let (_, pdf) = t.tile_and_pdf(d);
+            assert!(pdf.is_finite() && pdf >= 0.0, "{d}: {pdf}");
         }
     }
 

@@ -117,8 +117,11 @@ impl SpatialDirectionalTree {
     /// A tree over the box `low`–`high` (scene units): one leaf, one uniform quadtree.
     pub fn new(low: Vec3, high: Vec3, settings: SpatialDirectionalTreeSettings) -> Result<Self, Error> {
         settings.validate()?;
-        if !(low.is_finite() && high.is_finite()) {
-            return Err(Error::InvalidSetting { name: "bounds", value: f64::NAN, requirement: "finite" });
+        // The extent too: a box from −3e38 to 3e38 has corners in f32 but no size.
+        let padded = (high - low) * (1.0 + 2e-6);
+        if !(low.is_finite() && high.is_finite() && padded.is_finite()) {
+            let value = padded.max_element() as f64;
+            return Err(Error::InvalidSetting { name: "bounds", value, requirement: "finite, with a finite extent" });
         }
         let needed = LEAF_BYTES + NODE_BYTES;
         if settings.budget_bytes < needed {
@@ -627,6 +630,16 @@ mod tests {
         let a = tree.locate(Vec3::new(-0.9, -1.0, -0.9), Vec3::Y).unwrap();
         let b = tree.locate(Vec3::new(0.9, 1.0, 0.9), Vec3::Y).unwrap();
         assert_ne!(a.leaf, b.leaf);
+    }
+
+    #[test]
+    fn bounds_without_a_finite_extent_are_refused_and_flat_ones_validate() {
+        // Found by the capi_calls fuzzer: huge bounds made a tree that failed validation.
+        let settings = SpatialDirectionalTreeSettings::default();
+        let huge = SpatialDirectionalTree::new(Vec3::splat(-3e38), Vec3::splat(3e38), settings);
+        assert!(matches!(huge, Err(Error::InvalidSetting { name: "bounds", .. })));
+        let flat = SpatialDirectionalTree::new(Vec3::ONE, Vec3::ONE, settings).unwrap();
+        flat.validate().unwrap();
     }
 
     #[test]
