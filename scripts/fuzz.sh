@@ -36,6 +36,9 @@ seed_corpora() {
     } > fuzz/corpus/mesh/quad-binary.ply
     # Foreign scenes: a selector byte (even: pbrt, odd: Mitsuba), then the file; small
     # ones whose meshes resolve beside the original Cornell box, and the real ones.
+    # The C ABI's environment guide: 0xE5, then its config, a 4 × 2 map, a sun and calls.
+    head -c 400 /dev/zero | tr '\000' '\077' | { printf '\345\000\000\001\000\004\002\000\003\001'; cat; } \
+        > fuzz/corpus/capi_calls/environment
     { printf '\000'; cat scenes/veach-ajar/scene.pbrt; } > fuzz/corpus/foreign_scene/veach-ajar.pbrt
     for xml in scenes/*/scene.xml; do
         { printf '\001'; cat "$xml"; } > "fuzz/corpus/foreign_scene/$(basename "$(dirname "$xml")").xml"

@@ -1,7 +1,8 @@
 //! The C ABI with arbitrary arguments: a fuzzed config and mesh (or bounds, for the
 //! volume, mixture and tree), then a fuzzed sequence
 //! of calls with NaN/∞ numbers, stray regions, NULL outputs, odd buffer sizes and edited
-//! saved buffers. No call may panic through (`LODESTAR_STATUS_INTERNAL_ERROR`) or crash,
+//! saved buffers; inputs starting 0xE5 drive the environment guide instead. No call may
+//! panic through (`LODESTAR_STATUS_INTERNAL_ERROR`) or crash,
 //! and what a successful call returns is finite.
 #![no_main]
 
@@ -109,8 +110,95 @@ fn fuzzed_config(input: &mut Input) -> LodestarGuideConfig {
     config
 }
 
+/// The environment guide with a fuzzed config, map, sun and calls.
+fn environment_guide(input: &mut Input) {
+    let mut config = MaybeUninit::uninit();
+    assert!(ok(unsafe { lodestar_env_guide_config_default(config.as_mut_ptr()) }));
+    let mut config = unsafe { config.assume_init() };
+    config.budget_bytes = (input.u32() % (256 << 10)) as u64;
+    config.tiles = [input.u8() as u32 % 40, input.u8() as u32 % 24];
+    if input.u8() & 1 != 0 {
+        (config.power_mix, config.uniform_mix) = (input.f32(), input.f32());
+    }
+    let (width, height) = (1 + input.u8() as usize % 32, 1 + input.u8() as usize % 16);
+    let luminance: Vec<f32> = (0..width * height).map(|_| input.f32().abs().min(1e6)).collect();
+    let sun = LodestarSunDisk { direction: input.vec3(), angular_radius: input.f32(), luminance: input.f32() };
+    let sun_pointer = if input.u8() & 1 != 0 { &sun as *const _ } else { null() };
+    let (low, high) = (input.vec3(), input.vec3());
+    let mut guide = null_mut();
+    let created = unsafe {
+        lodestar_env_guide_create(&config, low, high, luminance.as_ptr(), width, height, sun_pointer, &mut guide)
+    };
+    if !ok(created) {
+        assert!(guide.is_null());
+        return;
+    }
+    let mut sample = LodestarEnvSample::default();
+    while !input.0.is_empty() {
+        let cell = input.u32() % 64;
+        unsafe {
+            match input.u8() % 5 {
+                0 => {
+                    let mut found = 0;
+                    ok(lodestar_env_guide_cell(guide, input.vec3(), &mut found));
+                }
+                1 => {
+                    let mut drawn = LodestarEnvSample::default();
+                    if ok(lodestar_env_guide_sample(guide, cell, input.f32(), input.f32(), input.f32(), &mut drawn)) {
+                        assert!(drawn.pdf.is_finite() && drawn.pdf > 0.0, "{drawn:?}");
+                        sample = drawn;
+                    }
+                }
+                2 => {
+                    let (mut pdf, direction) = (-1.0, input.vec3());
+                    if ok(lodestar_env_guide_pdf(guide, cell, direction, &mut pdf)) {
+                        assert!(pdf.is_finite() && pdf >= 0.0, "{pdf} at {direction:?} from cell {cell}");
+                    }
+                }
+                3 => {
+                    let mut outcome = LodestarUpdateOutcome::Accepted;
+                    if input.u8() & 1 != 0 {
+                        sample.lobe = input.u32() % 1024;
+                    }
+                    ok(lodestar_env_guide_update(guide, cell, &sample, input.f32(), &mut outcome));
+                }
+                _ => {
+                    assert!(ok(lodestar_env_guide_rebuild(guide)));
+                    let mut size = 0usize;
+                    assert!(ok(lodestar_env_guide_save(guide, null_mut(), 0, &mut size)));
+                    let mut bytes = vec![0u8; size];
+                    assert!(ok(lodestar_env_guide_save(guide, bytes.as_mut_ptr(), size, &mut size)));
+                    if input.u8() & 1 != 0 {
+                        let position = input.u32() as usize % bytes.len();
+                        bytes[position] ^= input.u8();
+                    }
+                    let mut loaded = null_mut();
+                    let status = lodestar_env_guide_load(
+                        &config,
+                        bytes.as_ptr(),
+                        bytes.len(),
+                        luminance.as_ptr(),
+                        width,
+                        height,
+                        sun_pointer,
+                        &mut loaded,
+                    );
+                    if ok(status) {
+                        assert!(ok(lodestar_env_guide_release(loaded)));
+                    }
+                }
+            }
+        }
+    }
+    assert!(ok(unsafe { lodestar_env_guide_release(guide) }));
+}
+
 fuzz_target!(|data: &[u8]| {
     let mut input = Input(data);
+    if data.first() == Some(&0xE5) {
+        input.u8();
+        return environment_guide(&mut input);
+    }
     let mut config = fuzzed_config(&mut input);
     if config.region_count == 0 && config.budget_bytes > 1 << 20 {
         config.region_count = 64; // keeps each run small; the budget path is covered below 1 MiB
@@ -179,7 +267,11 @@ fuzz_target!(|data: &[u8]| {
                 1 => {
                     let mut sample = LodestarDirectionSample::default();
                     if ok(lodestar_guide_sample(guide, region, input.f32(), input.f32(), &mut sample)) {
-                        assert!(sample.pdf.is_finite() && sample.pdf > 0.0, "{sample:?}");
+                        assert!(
+                            sample.pdf.is_finite() && sample.pdf > 0.0,
+                            "{sample:?} structure {} region {region:?}",
+                            (geometry >> 3) % 4
+                        );
                     }
                 }
                 2 => {
@@ -219,7 +311,9 @@ fuzz_target!(|data: &[u8]| {
                 }
                 7 => {
                     assert!(ok(lodestar_guide_rebuild(guide)));
-                    assert!(ok(lodestar_guide_validate(guide)), "a rebuilt guide validates");
+                    let valid = ok(lodestar_guide_validate(guide));
+                    let why = std::ffi::CStr::from_ptr(lodestar_last_error()).to_string_lossy();
+                    assert!(valid, "a rebuilt guide (structure {}) validates: {why}", (geometry >> 3) % 4);
                 }
                 8 => {
                     let mut stats = LodestarGuideStats::default();

@@ -84,10 +84,18 @@ pub(crate) fn point(value: LodestarVec3, name: &str) -> Result<Vec3, Failure> {
     }
 }
 
+/// `v` scaled to unit length, or `None` for zero length. Scaled by its largest component
+/// first: a tiny vector's squared length is denormal (or 0), and normalising it directly
+/// gives a vector that is not of unit length.
+pub(crate) fn unit(v: Vec3) -> Option<Vec3> {
+    let largest = v.abs().max_element();
+    (largest > 0.0 && largest.is_finite()).then(|| (v / largest).normalize())
+}
+
 /// A direction: finite and of non-zero length, returned normalised.
 pub(crate) fn direction(value: LodestarVec3, name: &str) -> Result<Vec3, Failure> {
     let v = point(value, name)?;
-    v.try_normalize().ok_or_else(|| {
+    unit(v).ok_or_else(|| {
         Failure::new(
             LodestarStatus::InvalidArgument,
             format!("`{name}` = ({}, {}, {}) has no direction (zero length)", v.x, v.y, v.z),

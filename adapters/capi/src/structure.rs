@@ -7,6 +7,7 @@ use guiding_core::{
     SpatialDirectionalTree, TreeRegion, VolumeRegion,
 };
 
+use crate::arguments::unit;
 use crate::status::{Failure, LodestarStatus};
 use crate::types::{LodestarRegion, LodestarVec3, LODESTAR_NO_REGION};
 
@@ -59,7 +60,7 @@ pub(crate) trait CRegions: Guide {
             ));
         }
         let normal = Vec3::from(region.normal);
-        let normal = normal.is_finite().then(|| normal.try_normalize()).flatten().ok_or_else(|| {
+        let normal = normal.is_finite().then(|| unit(normal)).flatten().ok_or_else(|| {
             Failure::new(
                 LodestarStatus::InvalidRegion,
                 format!(
