@@ -1,28 +1,43 @@
-//! Builds the C error-path test (`tests/c/api_errors.c`) and the C++ example
-//! (`examples/cpp/minimal_renderer.cpp`) with the system's gcc and g++ against the
-//! `liblodestar.so` cargo built beside this test, runs them, and runs both again under
+//! Installs liblodestar into a scratch prefix with `scripts/install-capi.sh`, builds the
+//! C error-path test (`tests/c/api_errors.c`) and the C++ example
+//! (`examples/cpp/minimal_renderer.cpp`, through `lodestar.hpp`) with the system's gcc and
+//! g++ from `pkg-config --cflags --libs lodestar`, runs them, and runs both again under
 //! valgrind's memcheck (errors and definite leaks fail). `scripts/setup.sh` installs
-//! g++ and valgrind.
+//! g++, pkg-config and valgrind.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-/// The directory holding a freshly built `liblodestar.so`. Cargo builds only the rlib
-/// flavour of a package for its tests, so the test builds the C library itself, with
-/// the cargo that runs it, into the same target directory.
-fn library_dir() -> PathBuf {
-    static BUILT: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
-    BUILT
+/// The prefix `scripts/install-capi.sh` installed a freshly built liblodestar into (its
+/// headers, `lodestar.pc` and CMake config beside it). Cargo builds only the rlib flavour
+/// of a package for its tests, so the script builds the C library itself, with the cargo
+/// that runs this test, into the same target directory.
+fn install_prefix() -> PathBuf {
+    static INSTALLED: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
+    INSTALLED
         .get_or_init(|| {
             let exe = std::env::current_exe().expect("the test binary's path");
             let target = exe.ancestors().nth(3).expect("target/<profile>/deps/<test>").to_path_buf();
-            let status = Command::new(env!("CARGO"))
-                .args(["build", "--release", "-p", "lodestar-capi", "--target-dir"])
-                .arg(&target)
+            let prefix = Path::new(env!("CARGO_TARGET_TMPDIR")).join("lodestar-prefix");
+            let script = crate_dir().join("../../scripts/install-capi.sh");
+            let cargo_dir = Path::new(env!("CARGO")).parent().expect("cargo's folder").to_path_buf();
+            let path = std::env::join_paths(
+                std::iter::once(cargo_dir).chain(std::env::split_paths(&std::env::var_os("PATH").unwrap_or_default())),
+            )
+            .expect("PATH joins");
+            let status = Command::new("bash")
+                .arg(script)
+                .arg(&prefix)
+                .env("CARGO_TARGET_DIR", &target)
+                .env("PATH", path)
                 .status()
-                .expect("cargo runs");
-            assert!(status.success(), "cargo build -p lodestar-capi failed");
-            target.join("release")
+                .expect("bash runs");
+            assert!(status.success(), "scripts/install-capi.sh failed");
+            for installed in ["lib/liblodestar.so", "lib/liblodestar.a", "include/lodestar.h", "include/lodestar.hpp"] {
+                assert!(prefix.join(installed).is_file(), "{installed} was not installed");
+            }
+            assert!(prefix.join("lib/cmake/lodestar/lodestarConfig.cmake").is_file());
+            prefix
         })
         .clone()
 }
@@ -31,19 +46,27 @@ fn crate_dir() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR"))
 }
 
-/// Compiles `source` with `compiler` and `flags` into the test's scratch directory.
+/// `pkg-config` with `args` for the installed lodestar, split into compiler arguments.
+fn pkg_config(args: &[&str]) -> Vec<String> {
+    let output = Command::new("pkg-config")
+        .args(args)
+        .arg("lodestar")
+        .env("PKG_CONFIG_PATH", install_prefix().join("lib/pkgconfig"))
+        .output()
+        .expect("pkg-config runs (scripts/setup.sh installs it)");
+    assert!(output.status.success(), "pkg-config {args:?} lodestar: {}", String::from_utf8_lossy(&output.stderr));
+    String::from_utf8(output.stdout).expect("UTF-8").split_whitespace().map(str::to_owned).collect()
+}
+
+/// Compiles `source` with `compiler` and `flags` into the test's scratch directory,
+/// against the installed library as `pkg-config --cflags --libs lodestar` describes it.
 fn compile(compiler: &str, source: &str, flags: &[&str], output: &str) -> PathBuf {
-    let library = library_dir();
     let binary = Path::new(env!("CARGO_TARGET_TMPDIR")).join(output);
     let status = Command::new(compiler)
         .args(flags)
         .arg(crate_dir().join(source))
-        .arg("-I")
-        .arg(crate_dir().join("include"))
-        .arg("-L")
-        .arg(&library)
-        .arg(format!("-Wl,-rpath,{}", library.display()))
-        .args(["-llodestar", "-pthread", "-lm", "-o"])
+        .args(pkg_config(&["--cflags", "--libs"]))
+        .args(["-pthread", "-lm", "-o"])
         .arg(&binary)
         .status()
         .unwrap_or_else(|e| panic!("cannot run {compiler} ({e}): run scripts/setup.sh to install it"));
@@ -91,6 +114,27 @@ fn c_error_paths_pass_and_run_clean_under_valgrind() {
             .unwrap_or_else(|| panic!("unexpected output:\n{out}"));
         assert_eq!(passed, total, "{out}");
         assert!(total.parse::<u32>().unwrap() >= 100, "{out}");
+    }
+}
+
+#[test]
+fn cpp_wrapper_without_exceptions_returns_statuses_and_runs_clean_under_valgrind() {
+    let binary = compile(
+        "g++",
+        "tests/cpp/status_only.cpp",
+        &["-std=c++17", "-O1", "-fno-exceptions", "-Wall", "-Wextra", "-Werror"],
+        "status_only",
+    );
+    for valgrind in [false, true] {
+        let out = run(&binary, &[], valgrind);
+        let summary = out.lines().last().unwrap_or_default();
+        let (passed, total) = summary
+            .strip_prefix("status_only: ")
+            .and_then(|rest| rest.strip_suffix(" checks passed"))
+            .and_then(|rest| rest.split_once(" of "))
+            .unwrap_or_else(|| panic!("unexpected output:\n{out}"));
+        assert_eq!(passed, total, "{out}");
+        assert!(total.parse::<u32>().unwrap() >= 60, "{out}");
     }
 }
 

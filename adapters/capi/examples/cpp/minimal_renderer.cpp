@@ -1,4 +1,5 @@
-// A minimal renderer loop guided through Lodestar's C API: a Cornell-style room with a
+// A minimal renderer loop guided through Lodestar's C++ wrapper (lodestar.hpp over the C
+// API): a Cornell-style room with a
 // ceiling light and a block, intersected by brute force, rendered with BSDF sampling
 // alone and then with a guide that learns along every path (Dahm & Keller's Eq. 1, the
 // targets computed by the library's path recorder from what the loop records), over two
@@ -6,7 +7,8 @@
 // sample exactly as before, and used once more. Prints the image means with their
 // standard errors and exits non-zero when they disagree or any call fails.
 //
-// Build: g++ -std=c++17 -O2 minimal_renderer.cpp -I../../include -L<dir> -llodestar -pthread
+// Build: g++ -std=c++17 -O2 minimal_renderer.cpp $(pkg-config --cflags --libs lodestar) -pthread
+//        (scripts/install-capi.sh PREFIX installs the library, the headers and lodestar.pc)
 // Run:   ./minimal_renderer [passes]   (default 16)
 #include <cmath>
 #include <cstdint>
@@ -15,7 +17,7 @@
 #include <thread>
 #include <vector>
 
-#include "lodestar.h"
+#include "lodestar.hpp"
 
 namespace {
 
@@ -35,12 +37,7 @@ constexpr float kPi = 3.14159265358979f;
 constexpr float kAlbedo = 0.7f;
 constexpr float kLightRadiance = 12.0f;
 
-void check(LodestarStatus status, const char* what) {
-    if (status != LODESTAR_STATUS_OK) {
-        std::fprintf(stderr, "%s failed: %s: %s\n", what, lodestar_status_name(status), lodestar_last_error());
-        std::exit(1);
-    }
-}
+using lodestar::check;  // throws lodestar::Error (status and message) on a failed call
 
 // PCG32 (O'Neill): a small, fast generator with independent streams per thread.
 struct Random {
@@ -124,7 +121,7 @@ Scene build_scene() {
 }
 
 // Probes go on every surface but the light, which reflects nothing.
-LodestarGuide* create_guide(const Scene& scene) {
+lodestar::Guide create_guide(const Scene& scene) {
     std::vector<float> positions;
     std::vector<uint32_t> indices;
     for (const Triangle& tri : scene.triangles) {
@@ -137,11 +134,7 @@ LodestarGuide* create_guide(const Scene& scene) {
     LodestarGuideConfig config;
     check(lodestar_guide_config_default(&config), "lodestar_guide_config_default");
     config.budget_bytes = 256 * 1024;
-    LodestarGuide* guide = nullptr;
-    check(lodestar_guide_create(&config, positions.data(), positions.size() / 3, indices.data(), indices.size() / 3,
-                                &guide),
-          "lodestar_guide_create");
-    return guide;
+    return lodestar::Guide::create(config, positions, indices);
 }
 
 Vec3 cosine_sample(Vec3 n, float u0, float u1) {
@@ -171,45 +164,41 @@ constexpr float kGuideProbability = 0.5f;
 
 // One path through pixel (px, py): recorded into `recorder` for `guide` to learn from
 // (Eq. 1's targets come from the recorder), sampling the guide when `guided`.
-float trace_path(const Scene& scene, const LodestarGuide* guide, LodestarPathRecorder* recorder, bool guided, int px,
-                 int py, Random& rng) {
+float trace_path(const Scene& scene, const lodestar::Guide* guide, lodestar::PathRecorder& recorder, bool guided,
+                 int px, int py, Random& rng) {
     const float tan_half_fov = std::tan(0.5f * 40.0f * kPi / 180.0f);
     float sx = (2 * (px + rng.uniform()) / kWidth - 1) * tan_half_fov * kWidth / kHeight;
     float sy = (1 - 2 * (py + rng.uniform()) / kHeight) * tan_half_fov;
     Vec3 origin{0.5f, 0.5f, -1.4f}, direction = normalize(Vec3{sx, sy, 1});
     float throughput = 1, radiance = 0;
-    if (guide) check(lodestar_path_recorder_clear(recorder), "clear");
+    if (guide) check(recorder.clear(), "clear");
     for (int depth = 0; depth < kMaxDepth; ++depth) {
         float t;
         int index;
         bool hit = scene.intersect(origin, direction, t, index);
-        if (guide && hit) check(lodestar_path_recorder_reached(recorder, t), "reached");
+        if (guide && hit) check(recorder.reached(t), "reached");
         float emitted = 0;
         if (hit && scene.triangles[index].emitter)
             emitted = dot(direction, scene.triangles[index].normal) < 0 ? kLightRadiance : 0;
         if (!hit || scene.triangles[index].emitter) {
             radiance += throughput * emitted;
-            if (guide) check(lodestar_path_recorder_arrive(recorder, emitted), "arrive");
+            if (guide) check(recorder.arrive(emitted), "arrive");
             break;
         }
         Vec3 x = origin + direction * t, n = scene.triangles[index].normal;
         if (dot(n, direction) > 0) n = n * -1.0f;
-        LodestarRegion region{LODESTAR_NO_REGION, 0, to_c(n)};
-        if (guide) check(lodestar_guide_locate(guide, to_c(x), to_c(n), &region), "locate");
+        lodestar::Region region{LODESTAR_NO_REGION, 0, to_c(n)};
+        if (guide) region = guide->locate(to_c(x), to_c(n));
         // Eq. (1): beyond this vertex, the previous one learns this one's reflected Q.
         if (guide && region.index != LODESTAR_NO_REGION) {
-            float reflected = 0;
-            check(lodestar_guide_estimate_integral_lambertian(guide, region, to_c(n), kAlbedo, 0.5f, 0.5f, &reflected),
-                  "estimate_integral_lambertian");
-            check(lodestar_path_recorder_estimate(recorder, reflected), "estimate");
+            float reflected = guide->estimate_integral_lambertian(region, to_c(n), kAlbedo, 0.5f, 0.5f);
+            check(recorder.estimate(reflected), "estimate");
         }
         bool use_guide = guided && region.index != LODESTAR_NO_REGION;
         float u0 = rng.uniform(), u1 = rng.uniform();
         Vec3 wi;
         if (use_guide && rng.uniform() < kGuideProbability) {
-            LodestarDirectionSample sample;
-            check(lodestar_guide_sample(guide, region, u0, u1, &sample), "sample");
-            wi = from_c(sample.direction);
+            wi = from_c(guide->sample(region, u0, u1).direction);
         } else {
             wi = cosine_sample(n, u0, u1);
         }
@@ -217,8 +206,8 @@ float trace_path(const Scene& scene, const LodestarGuide* guide, LodestarPathRec
         if (cos_theta <= 0) break;  // below the surface: the BSDF is zero there
         float pdf = cos_theta / kPi;
         if (use_guide) {
-            float guide_pdf;
-            check(lodestar_guide_pdf(guide, region, to_c(wi), &guide_pdf), "pdf");
+            float guide_pdf = 0;
+            check(guide->pdf(region, to_c(wi), guide_pdf), "pdf");  // the status form, for once
             pdf = kGuideProbability * guide_pdf + (1 - kGuideProbability) * pdf;  // one-sample MIS
         }
         float factor = kAlbedo / kPi * cos_theta / pdf;
@@ -231,22 +220,19 @@ float trace_path(const Scene& scene, const LodestarGuide* guide, LodestarPathRec
         }
         if (guide) {
             // Without an estimate of its own this vertex hands its target back, scaled.
-            if (region.index == LODESTAR_NO_REGION) check(lodestar_path_recorder_carry(recorder, factor), "carry");
-            check(lodestar_path_recorder_scattered(recorder, region, to_c(x), to_c(wi), pdf, throughput), "scattered");
+            if (region.index == LODESTAR_NO_REGION) check(recorder.carry(factor), "carry");
+            check(recorder.scattered(region, to_c(x), to_c(wi), pdf, throughput), "scattered");
         }
         origin = x;
         direction = wi;
     }
-    if (guide) {
-        size_t accepted;
-        check(lodestar_path_recorder_learn(recorder, guide, &accepted), "learn");
-    }
+    if (guide) recorder.learn(*guide);
     return radiance;
 }
 
 // `passes` passes of one path per pixel over two threads; the guide (if any) learns in
 // every pass and rebuilds its sampling distributions between them.
-Sums render(const Scene& scene, LodestarGuide* guide, bool guided, int passes, uint64_t seed) {
+Sums render(const Scene& scene, lodestar::Guide* guide, bool guided, int passes, uint64_t seed) {
     constexpr int kThreads = 2;
     Sums total;
     for (int pass = 0; pass < passes; ++pass) {
@@ -255,12 +241,16 @@ Sums render(const Scene& scene, LodestarGuide* guide, bool guided, int passes, u
         for (int w = 0; w < kThreads; ++w) {
             workers.emplace_back([&, w] {
                 Random rng(seed * 1000003u + pass, uint64_t(w));
-                LodestarPathRecorder* recorder = nullptr;  // one per thread
-                check(lodestar_path_recorder_create(&recorder), "path_recorder_create");
-                for (int py = w; py < kHeight; py += kThreads)
-                    for (int px = 0; px < kWidth; ++px)
-                        per_thread[w].add(trace_path(scene, guide, recorder, guided, px, py, rng));
-                check(lodestar_path_recorder_release(recorder), "path_recorder_release");
+                lodestar::PathRecorder recorder;  // one per thread; released when it goes
+                check(lodestar::PathRecorder::create(recorder), "path_recorder_create");
+                try {
+                    for (int py = w; py < kHeight; py += kThreads)
+                        for (int px = 0; px < kWidth; ++px)
+                            per_thread[w].add(trace_path(scene, guide, recorder, guided, px, py, rng));
+                } catch (const lodestar::Error& e) {
+                    std::fprintf(stderr, "%s\n", e.what());
+                    std::exit(1);
+                }
             });
         }
         for (std::thread& worker : workers) worker.join();
@@ -269,7 +259,7 @@ Sums render(const Scene& scene, LodestarGuide* guide, bool guided, int passes, u
             total.sum_squares += s.sum_squares;
             total.count += s.count;
         }
-        if (guide) check(lodestar_guide_rebuild(guide), "rebuild");
+        if (guide) check(guide->rebuild(), "rebuild");
     }
     return total;
 }
@@ -281,7 +271,7 @@ bool agree(const Sums& a, const Sums& b) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
+int run(int argc, char** argv) {
     if (lodestar_version() != LODESTAR_VERSION) {
         std::fprintf(stderr, "header version %u, library version %u\n", LODESTAR_VERSION, lodestar_version());
         return 1;
@@ -296,45 +286,45 @@ int main(int argc, char** argv) {
     Sums unguided = render(scene, nullptr, false, passes, 1);
     std::printf("unguided mean %.5f +- %.5f\n", unguided.mean(), unguided.standard_error());
 
-    LodestarGuide* guide = create_guide(scene);
-    Sums guided = render(scene, guide, true, passes, 2);
+    lodestar::Guide guide = create_guide(scene);
+    Sums guided = render(scene, &guide, true, passes, 2);
     std::printf("guided mean %.5f +- %.5f\n", guided.mean(), guided.standard_error());
-    LodestarGuideStats stats;
-    check(lodestar_guide_stats(guide, &stats), "stats");
+    const LodestarGuideStats stats = guide.stats();
     std::printf("guide regions %llu, accepted updates %llu, bytes %llu\n", (unsigned long long)stats.regions,
                 (unsigned long long)stats.accepted_updates, (unsigned long long)stats.memory_bytes);
 
     // Save, release, reload: the reloaded guide must sample exactly as the saved one.
-    size_t size = 0;
-    check(lodestar_guide_serialized_size(guide, &size), "serialized_size");
-    std::vector<uint8_t> buffer(size);
-    check(lodestar_guide_save(guide, buffer.data(), buffer.size(), &size), "save");
+    const std::vector<uint8_t> buffer = guide.save();
     std::vector<LodestarDirectionSample> before;
     for (uint32_t r = 0; r < stats.regions; r += 7)
-        for (int i = 0; i < 4; ++i) {
-            LodestarDirectionSample sample;
-            check(lodestar_guide_sample(guide, LodestarRegion{r, 0, {0, 0, 1}}, 0.1f + 0.2f * i, 0.3f, &sample), "sample");
-            before.push_back(sample);
-        }
-    check(lodestar_guide_release(guide), "release");
-    check(lodestar_guide_load(buffer.data(), buffer.size(), &guide), "load");
-    check(lodestar_guide_validate(guide), "validate");
+        for (int i = 0; i < 4; ++i) before.push_back(guide.sample(lodestar::Region{r, 0, {0, 0, 1}}, 0.1f + 0.2f * i, 0.3f));
+    guide.reset();
+    guide = lodestar::Guide::load(buffer);
+    check(guide.validate(), "validate");
     size_t mismatches = 0, k = 0;
     for (uint32_t r = 0; r < stats.regions; r += 7)
         for (int i = 0; i < 4; ++i, ++k) {
-            LodestarDirectionSample sample;
-            check(lodestar_guide_sample(guide, LodestarRegion{r, 0, {0, 0, 1}}, 0.1f + 0.2f * i, 0.3f, &sample), "sample");
+            const LodestarDirectionSample sample = guide.sample(lodestar::Region{r, 0, {0, 0, 1}}, 0.1f + 0.2f * i, 0.3f);
             const LodestarDirectionSample& old = before[k];
             if (sample.pdf != old.pdf || sample.direction.x != old.direction.x ||
                 sample.direction.y != old.direction.y || sample.direction.z != old.direction.z)
                 ++mismatches;
         }
-    std::printf("saved %zu bytes; reloaded guide: %zu of %zu samples differ\n", size, mismatches, before.size());
-    Sums reloaded = render(scene, guide, true, passes / 2, 3);
+    std::printf("saved %zu bytes; reloaded guide: %zu of %zu samples differ\n", buffer.size(), mismatches,
+                before.size());
+    Sums reloaded = render(scene, &guide, true, passes / 2, 3);
     std::printf("reloaded mean %.5f +- %.5f\n", reloaded.mean(), reloaded.standard_error());
-    check(lodestar_guide_release(guide), "release");
 
     bool ok = mismatches == 0 && agree(unguided, guided) && agree(unguided, reloaded) && unguided.mean() > 0;
     std::printf("%s\n", ok ? "means agree" : "MEANS DISAGREE");
     return ok ? 0 : 1;
+}
+
+int main(int argc, char** argv) {
+    try {
+        return run(argc, argv);
+    } catch (const lodestar::Error& e) {
+        std::fprintf(stderr, "%s\n", e.what());
+        return 1;
+    }
 }
