@@ -43,3 +43,24 @@ pub(crate) fn running_average(value: &AtomicU32, count: &AtomicU32, target: f32)
     let alpha = (1.0 / (1.0 + n as f64)) as f32;
     update(value, |v| crate::update_rule::blend(v, target, alpha, 0.0));
 }
+
+/// Adds what other running averages learned to these, entry by entry: each merged value
+/// is the mean over both sets of targets, (v·n + v'·n') / (n + n'), and the counts add
+/// (saturating). Exact: a running average is a sum and a count.
+#[cfg(any(feature = "lights", feature = "env"))]
+pub(crate) fn merge_running_averages(
+    values: &[AtomicU32],
+    counts: &[AtomicU32],
+    other_values: &[AtomicU32],
+    other_counts: &[AtomicU32],
+) {
+    let entries = values.iter().zip(counts).zip(other_values.iter().zip(other_counts));
+    for ((value, count), (other_value, other_count)) in entries {
+        let (n, m) = (count.load(Ordering::Relaxed) as f64, other_count.load(Ordering::Relaxed) as f64);
+        if m > 0.0 {
+            let merged = (load(value) as f64 * n + load(other_value) as f64 * m) / (n + m);
+            value.store((merged as f32).to_bits(), Ordering::Relaxed);
+            count.store((n + m).min(u32::MAX as f64) as u32, Ordering::Relaxed);
+        }
+    }
+}

@@ -593,6 +593,18 @@ enum LodestarStatus lodestar_env_guide_update(const struct LodestarEnvGuide *gui
 // `guide` must be NULL or a live handle no other call is using.
 enum LodestarStatus lodestar_env_guide_rebuild(struct LodestarEnvGuide *guide);
 
+// Adds what `other` learned (the same scene and settings, e.g. another node of a
+// render farm; loaded from its saved bytes) to `guide` and rebuilds it; exact, as
+// guiding-core's `EnvTileGuide::merge` says. Guides of another scene or settings are
+// `LODESTAR_STATUS_INVALID_ARGUMENT` naming what differs, and nothing changes. Needs
+// `guide` to itself; `other` is only read.
+//
+// # Safety
+// `guide` must be NULL or a live handle no other call is using; `other` NULL or a live
+// handle.
+enum LodestarStatus lodestar_env_guide_merge(struct LodestarEnvGuide *guide,
+                                             const struct LodestarEnvGuide *other);
+
 // Writes what the guide learned (versioned, checksummed, with a fingerprint of the
 // environment; the map itself is the caller's and is not stored) to `buffer` and its
 // length to `*out_size`; with `buffer` NULL and `capacity` 0 only the size is written.
@@ -754,6 +766,18 @@ enum LodestarStatus lodestar_guide_estimate_integral_lambertian(const struct Lod
 // `guide` must be NULL or a live handle no other thread is using.
 enum LodestarStatus lodestar_guide_rebuild(struct LodestarGuide *guide);
 
+// Adds what `other` learned to `guide` and rebuilds it. Hemisphere grids over the same
+// mesh with the same config merge exactly under simple averaging (a weighted mean
+// otherwise); other structures, or grids of another scene or config, are
+// `LODESTAR_STATUS_INVALID_ARGUMENT` naming why, and nothing changes. Needs `guide` to
+// itself; `other` is only read.
+//
+// # Safety
+// `guide` must be NULL or a live handle no other call is using; `other` NULL or a live
+// handle.
+enum LodestarStatus lodestar_guide_merge(struct LodestarGuide *guide,
+                                         const struct LodestarGuide *other);
+
 // Sizes and counters. Thread-safe (a snapshot of counters others may be updating).
 //
 // # Safety
@@ -846,6 +870,18 @@ enum LodestarStatus lodestar_light_guide_update(const struct LodestarLightGuide 
 // # Safety
 // `guide` must be NULL or a live handle no other call is using.
 enum LodestarStatus lodestar_light_guide_rebuild(struct LodestarLightGuide *guide);
+
+// Adds what `other` learned (the same scene and settings, e.g. another node of a
+// render farm; loaded from its saved bytes) to `guide` and rebuilds it; exact, as
+// guiding-core's `LightGuide::merge` says. Guides of another scene or settings are
+// `LODESTAR_STATUS_INVALID_ARGUMENT` naming what differs, and nothing changes. Needs
+// `guide` to itself; `other` is only read.
+//
+// # Safety
+// `guide` must be NULL or a live handle no other call is using; `other` NULL or a live
+// handle.
+enum LodestarStatus lodestar_light_guide_merge(struct LodestarLightGuide *guide,
+                                               const struct LodestarLightGuide *other);
 
 // Writes the guide (versioned, checksummed) to `buffer` and its length to
 // `*out_size`; with `buffer` NULL and `capacity` 0 only the size is written. When

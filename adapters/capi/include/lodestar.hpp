@@ -152,6 +152,8 @@ public:
     Status validate() const noexcept { return lodestar_guide_validate(get()); }
     /// Between passes, with no other call on this guide in flight.
     Status rebuild() noexcept { return lodestar_guide_rebuild(get()); }
+    /// Adds what `other` learned (hemisphere grids of the same scene and config).
+    Status merge(const Guide& other) noexcept { return lodestar_guide_merge(get(), other.get()); }
     Status save(std::vector<uint8_t>& out) const noexcept {
         return detail::save(get(), lodestar_guide_save, lodestar_guide_serialized_size, out);
     }
@@ -283,6 +285,7 @@ public:
         return lodestar_light_guide_update(get(), cell, light, contribution, unoccluded ? 1u : 0u, &out);
     }
     Status rebuild() noexcept { return lodestar_light_guide_rebuild(get()); }
+    Status merge(const LightGuide& other) noexcept { return lodestar_light_guide_merge(get(), other.get()); }
     Status save(std::vector<uint8_t>& out) const noexcept {
         size_t size = 0;
         Status s = lodestar_light_guide_save(get(), nullptr, 0, &size);
@@ -332,6 +335,7 @@ public:
         return lodestar_env_guide_update(get(), cell, &sample, integrand, &out);
     }
     Status rebuild() noexcept { return lodestar_env_guide_rebuild(get()); }
+    Status merge(const EnvGuide& other) noexcept { return lodestar_env_guide_merge(get(), other.get()); }
 
 #ifdef LODESTAR_HPP_EXCEPTIONS
     static EnvGuide create(const LodestarEnvGuideConfig& config, Vec3 low, Vec3 high, const float* luminance,

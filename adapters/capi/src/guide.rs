@@ -393,6 +393,41 @@ pub unsafe extern "C" fn lodestar_guide_rebuild(guide: *mut LodestarGuide) -> Lo
     })
 }
 
+/// Adds what `other` learned to `guide` and rebuilds it. Hemisphere grids over the same
+/// mesh with the same config merge exactly under simple averaging (a weighted mean
+/// otherwise); other structures, or grids of another scene or config, are
+/// `LODESTAR_STATUS_INVALID_ARGUMENT` naming why, and nothing changes. Needs `guide` to
+/// itself; `other` is only read.
+///
+/// # Safety
+/// `guide` must be NULL or a live handle no other call is using; `other` NULL or a live
+/// handle.
+#[no_mangle]
+pub unsafe extern "C" fn lodestar_guide_merge(
+    guide: *mut LodestarGuide,
+    other: *const LodestarGuide,
+) -> LodestarStatus {
+    guarded("lodestar_guide_merge", || {
+        // SAFETY (both): checked non-NULL and aligned; liveness and exclusivity are the caller's contract.
+        unsafe { borrow(guide.cast_const(), "guide") }?;
+        let other = unsafe { borrow(other, "other") }?;
+        if std::ptr::eq(guide.cast_const(), other) {
+            return Err(Failure::new(LodestarStatus::InvalidArgument, "`other` is `guide` itself".to_string()));
+        }
+        match (&mut unsafe { &mut *guide }.structure, &other.structure) {
+            (GuideStructure::Hemisphere(grid), GuideStructure::Hemisphere(theirs)) => {
+                grid.merge(theirs).map_err(|e| Failure::from_core(&e, "merging"))
+            }
+            _ => Err(Failure::new(
+                LodestarStatus::InvalidArgument,
+                "only two hemisphere grids merge: the volume's and the tree's shapes depend on what each learned, \
+                 and a mixture's fit has no exact sum"
+                    .to_string(),
+            )),
+        }
+    })
+}
+
 /// Sizes and counters. Thread-safe (a snapshot of counters others may be updating).
 ///
 /// # Safety

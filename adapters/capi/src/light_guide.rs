@@ -317,6 +317,31 @@ pub unsafe extern "C" fn lodestar_light_guide_rebuild(guide: *mut LodestarLightG
     })
 }
 
+/// Adds what `other` learned (the same scene and settings, e.g. another node of a
+/// render farm; loaded from its saved bytes) to `guide` and rebuilds it; exact, as
+/// guiding-core's `LightGuide::merge` says. Guides of another scene or settings are
+/// `LODESTAR_STATUS_INVALID_ARGUMENT` naming what differs, and nothing changes. Needs
+/// `guide` to itself; `other` is only read.
+///
+/// # Safety
+/// `guide` must be NULL or a live handle no other call is using; `other` NULL or a live
+/// handle.
+#[no_mangle]
+pub unsafe extern "C" fn lodestar_light_guide_merge(
+    guide: *mut LodestarLightGuide,
+    other: *const LodestarLightGuide,
+) -> LodestarStatus {
+    guarded("lodestar_light_guide_merge", || {
+        // SAFETY (both): checked non-NULL and aligned; liveness and exclusivity are the caller's contract.
+        unsafe { borrow(guide.cast_const(), "guide") }?;
+        let other = unsafe { borrow(other, "other") }?;
+        if std::ptr::eq(guide.cast_const(), other) {
+            return Err(Failure::new(LodestarStatus::InvalidArgument, "`other` is `guide` itself".to_string()));
+        }
+        unsafe { &mut *guide }.guide.merge(&other.guide).map_err(|e| Failure::from_core(&e, "merging"))
+    })
+}
+
 /// Writes the guide (versioned, checksummed) to `buffer` and its length to
 /// `*out_size`; with `buffer` NULL and `capacity` 0 only the size is written. When
 /// `capacity` is too small nothing is written to `buffer`, `*out_size` receives the

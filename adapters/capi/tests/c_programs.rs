@@ -84,8 +84,11 @@ fn run(program: &Path, args: &[&str], under_valgrind: bool) -> String {
     } else {
         Command::new(program)
     };
+    // Cargo's LD_LIBRARY_PATH (target/debug/deps first) may hold an older liblodestar.so
+    // from a debug build; the program must load the installed one its rpath names.
     let output = command
         .args(args)
+        .env_remove("LD_LIBRARY_PATH")
         .output()
         .unwrap_or_else(|e| panic!("cannot run {} ({e}): run scripts/setup.sh for valgrind", program.display()));
     let stdout = String::from_utf8_lossy(&output.stdout).into_owned();

@@ -171,6 +171,27 @@ impl EnvTileGuide {
         UpdateOutcome::Accepted
     }
 
+    /// Adds what `other` learned (another process of the same scene) to this guide and
+    /// rebuilds: per (cell, lobe) the values are averaged by their update counts and the
+    /// counts add, so the merge is exact. Both must have the same bounds, environment
+    /// (tiles, sun) and settings; otherwise nothing changes and [`Error::Incompatible`]
+    /// names what differs.
+    pub fn merge(&mut self, other: &EnvTileGuide) -> Result<(), Error> {
+        if self.settings != other.settings {
+            return Err(Error::Incompatible { what: "settings" });
+        }
+        if self.bounds != other.bounds || self.grid.resolution() != other.grid.resolution() {
+            return Err(Error::Incompatible { what: "bounds" });
+        }
+        if self.power_share != other.power_share || self.tiles.size() != other.tiles.size() {
+            return Err(Error::Incompatible { what: "environment" });
+        }
+        atomic_f32::merge_running_averages(&self.values, &self.updates, &other.values, &other.updates);
+        self.rejected.fetch_add(other.rejected.load(Ordering::Relaxed), Ordering::Relaxed);
+        self.rebuild();
+        Ok(())
+    }
+
     /// Rebuilds every cell's lobe CDF from what it learned: probability
     /// (1 - power_mix - uniform_mix)·V/ΣV + power_mix·power share + uniform_mix/lit lobes
     /// (cells that learned nothing yet use the power and uniform shares alone). Lobes
@@ -369,6 +390,36 @@ mod tests {
         }
         guide.rebuild();
         (guide, cell)
+    }
+
+    #[test]
+    fn merging_two_halves_learns_what_one_guide_learns_from_all() {
+        let make = || {
+            let tiles = EnvironmentTiles::new(32, 16, &sky(32, 16), [8, 4]).unwrap();
+            let sun = SunDisk::new(Vec3::new(0.4, 0.9, -0.2), 2f32.to_radians(), 500.0).unwrap();
+            let settings = EnvTileGuideSettings { resolution: Some([2, 2, 2]), ..Default::default() };
+            EnvTileGuide::new(Vec3::ZERO, Vec3::ONE, tiles, Some(sun), settings).unwrap()
+        };
+        let (mut first, second, mut whole) = (make(), make(), make());
+        let mut rng = Pcg32::new(3, 3);
+        for i in 0..20_000 {
+            let cell = whole.cell(Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32())).unwrap();
+            let s = whole.distribution(cell).sample_lobe(rng.next_f32(), rng.next_vec2());
+            let integrand = if s.direction.y > 0.2 { rng.next_f32() } else { 0.0 };
+            whole.update(cell, &s, integrand);
+            (if i % 2 == 0 { &first } else { &second }).update(cell, &s, integrand);
+        }
+        whole.rebuild();
+        first.merge(&second).unwrap();
+        for cell in 0..whole.cell_count() as u32 {
+            for lobe in 0..whole.lobe_count() as u32 {
+                let merged = first.distribution(EnvCell(cell)).lobe_probability(EnvLobe(lobe));
+                let all = whole.distribution(EnvCell(cell)).lobe_probability(EnvLobe(lobe));
+                assert!((merged - all).abs() <= 1e-5 * all.max(1e-3), "cell {cell} lobe {lobe}: {merged} vs {all}");
+            }
+        }
+        let (other, _) = learned_guide(true);
+        assert!(matches!(first.merge(&other), Err(Error::Incompatible { .. })));
     }
 
     /// ∫ pdf dω, the tiles' part by the midpoint rule on a grid aligned with the texels

@@ -159,6 +159,44 @@ impl LightGuide {
         UpdateOutcome::Accepted
     }
 
+    /// Adds what `other` learned (another process or thread of the same scene, e.g. a
+    /// render farm's node) to this guide and rebuilds: per (cell, light) the values are
+    /// averaged by their update counts and the counts and shadow rays add, so the merge
+    /// is exact (the guide one process would have learned from both sets of rays). Both
+    /// must have the same bounds, lights and settings; otherwise nothing changes and
+    /// [`Error::Incompatible`] names what differs.
+    pub fn merge(&mut self, other: &LightGuide) -> Result<(), Error> {
+        if self.settings != other.settings {
+            return Err(Error::Incompatible { what: "settings" });
+        }
+        if self.bounds != other.bounds || self.grid.resolution() != other.grid.resolution() {
+            return Err(Error::Incompatible { what: "bounds" });
+        }
+        if self.power_share != other.power_share {
+            return Err(Error::Incompatible { what: "lights" });
+        }
+        if self.settings.rule == LightUpdateRule::VisibilityRatio {
+            // Hits and shots are both counts.
+            for (count, other_count) in self.updates.iter().zip(&other.updates) {
+                count.store(
+                    count.load(Ordering::Relaxed).saturating_add(other_count.load(Ordering::Relaxed)),
+                    Ordering::Relaxed,
+                );
+            }
+        } else {
+            atomic_f32::merge_running_averages(&self.values, &self.updates, &other.values, &other.updates);
+        }
+        for (shots, other_shots) in self.shots.iter().zip(&other.shots) {
+            shots.store(
+                shots.load(Ordering::Relaxed).saturating_add(other_shots.load(Ordering::Relaxed)),
+                Ordering::Relaxed,
+            );
+        }
+        self.rejected.fetch_add(other.rejected.load(Ordering::Relaxed), Ordering::Relaxed);
+        self.rebuild();
+        Ok(())
+    }
+
     /// Rebuilds every cell's selection CDF from what it learned: probability
     /// (1 - power_mix - uniform_mix)·V/ΣV + power_mix·power share + uniform_mix/lights
     /// (cells that learned nothing yet use power and uniform shares alone). Call between
@@ -242,6 +280,44 @@ mod tests {
 
     fn guide(powers: &[f32], settings: LightGuideSettings) -> LightGuide {
         LightGuide::new(Vec3::ZERO, Vec3::new(4.0, 2.0, 1.0), powers, settings).unwrap()
+    }
+
+    #[test]
+    fn merging_two_halves_learns_what_one_guide_learns_from_all() {
+        for rule in
+            [LightUpdateRule::MeanContribution, LightUpdateRule::UnoccludedAverage, LightUpdateRule::VisibilityRatio]
+        {
+            let settings = LightGuideSettings { rule, ..Default::default() };
+            let powers = [1.0, 2.0, 5.0, 0.5];
+            let (mut first, second, mut whole) =
+                (guide(&powers, settings), guide(&powers, settings), guide(&powers, settings));
+            let mut rng = Pcg32::new(8, 1);
+            for i in 0..20_000 {
+                let point = Vec3::new(4.0 * rng.next_f32(), 2.0 * rng.next_f32(), rng.next_f32());
+                let cell = whole.cell(point).unwrap();
+                let light = rng.next_u32() % 4;
+                let (contribution, unoccluded) = (rng.next_f32() * (1 + light) as f32, rng.next_f32() < 0.6);
+                whole.update(cell, light, contribution, unoccluded);
+                let half = if i % 2 == 0 { &first } else { &second };
+                half.update(cell, light, contribution, unoccluded);
+            }
+            whole.rebuild();
+            first.merge(&second).unwrap();
+            for cell in 0..whole.cell_count() as u32 {
+                for light in 0..4 {
+                    let (merged, all) =
+                        (first.probability(LightCell(cell), light), whole.probability(LightCell(cell), light));
+                    assert!(
+                        (merged - all).abs() <= 1e-5 * all.max(1e-3),
+                        "{rule:?} cell {cell} light {light}: {merged} vs {all}"
+                    );
+                }
+            }
+            let other = LightGuide::new(Vec3::ZERO, Vec3::ONE, &powers, settings).unwrap();
+            assert!(matches!(first.merge(&other), Err(Error::Incompatible { what: "bounds" })));
+            let brighter = guide(&[1.0, 2.0, 5.0, 9.0], settings);
+            assert!(matches!(first.merge(&brighter), Err(Error::Incompatible { what: "lights" })));
+        }
     }
 
     #[test]

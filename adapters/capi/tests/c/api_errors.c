@@ -286,6 +286,19 @@ static void buffer_errors(LodestarGuide *guide) {
     TRUTH(original.regions == copy.regions && original.entries_per_region == copy.entries_per_region);
     TRUTH(original.accepted_updates == copy.accepted_updates && original.visited_entries == copy.visited_entries);
     TRUTH(original.rejected_non_finite == copy.rejected_non_finite && original.epochs == copy.epochs);
+    /* Merging: a grid takes in its own copy (twice the updates); other structures refuse. */
+    uint32_t structure = 0;
+    EXPECT_OK(lodestar_guide_structure(guide, &structure));
+    EXPECT(lodestar_guide_merge(guide, NULL), LODESTAR_STATUS_NULL_ARGUMENT, "other");
+    EXPECT(lodestar_guide_merge(guide, guide), LODESTAR_STATUS_INVALID_ARGUMENT, "itself");
+    if (structure == LODESTAR_STRUCTURE_HEMISPHERE_GRID) {
+        EXPECT_OK(lodestar_guide_merge(guide, loaded));
+        EXPECT_OK(lodestar_guide_stats(guide, &copy));
+        TRUTH(copy.accepted_updates == 2 * original.accepted_updates);
+        EXPECT_OK(lodestar_guide_validate(guide));
+    } else {
+        EXPECT(lodestar_guide_merge(guide, loaded), LODESTAR_STATUS_INVALID_ARGUMENT, "hemisphere grids");
+    }
     EXPECT_OK(lodestar_guide_release(loaded));
     free(bytes);
 }
@@ -416,6 +429,17 @@ static void light_guide_errors(void) {
     float loaded_p0 = 0;
     EXPECT_OK(lodestar_light_guide_probability(loaded, cell, 0, &loaded_p0));
     TRUTH(loaded_p0 == p0);
+    /* Merging its own copy keeps every mean: the probabilities stay. */
+    EXPECT(lodestar_light_guide_merge(lights, NULL), LODESTAR_STATUS_NULL_ARGUMENT, "other");
+    EXPECT(lodestar_light_guide_merge(lights, lights), LODESTAR_STATUS_INVALID_ARGUMENT, "itself");
+    EXPECT_OK(lodestar_light_guide_merge(loaded, lights));
+    EXPECT_OK(lodestar_light_guide_probability(loaded, cell, 0, &loaded_p0));
+    TRUTH(fabsf(loaded_p0 - p0) <= 1e-6f);
+    LodestarLightGuide *elsewhere = NULL;
+    LodestarVec3 far_high = {8, 2, 1};
+    EXPECT_OK(lodestar_light_guide_create(&config, low, far_high, powers, 3, &elsewhere));
+    EXPECT(lodestar_light_guide_merge(loaded, elsewhere), LODESTAR_STATUS_INVALID_ARGUMENT, "bounds");
+    EXPECT_OK(lodestar_light_guide_release(elsewhere));
     EXPECT_OK(lodestar_light_guide_release(loaded));
     free(bytes);
     EXPECT_OK(lodestar_light_guide_release(lights));
@@ -646,6 +670,10 @@ static void env_guide_errors(void) {
     float loaded_up = 0;
     EXPECT_OK(lodestar_env_guide_pdf(loaded, cell, above, &loaded_up));
     TRUTH(loaded_up == pdf_up);
+    EXPECT(lodestar_env_guide_merge(env, env), LODESTAR_STATUS_INVALID_ARGUMENT, "itself");
+    EXPECT_OK(lodestar_env_guide_merge(loaded, env));
+    EXPECT_OK(lodestar_env_guide_pdf(loaded, cell, above, &loaded_up));
+    TRUTH(fabsf(loaded_up - pdf_up) <= 1e-5f * pdf_up);
     EXPECT_OK(lodestar_env_guide_release(loaded));
     free(bytes);
     EXPECT(lodestar_env_guide_release(NULL), LODESTAR_STATUS_NULL_ARGUMENT, "guide");

@@ -48,6 +48,7 @@ void exercise(lodestar::Guide& guide, uint32_t structure) {
     OK(lodestar::Guide::load(bytes, loaded));
     lodestar::Guide moved = std::move(loaded);
     TRUTH(!loaded && moved);
+    TRUTH((moved.merge(guide) == LODESTAR_STATUS_OK) == (structure == LODESTAR_STRUCTURE_HEMISPHERE_GRID));
     OK(moved.structure(found));
     TRUTH(found == structure);
     bytes[bytes.size() / 2] ^= 1;
@@ -119,6 +120,8 @@ int main() {
         OK(lights.save(bytes));
         lodestar::LightGuide loaded;
         OK(lodestar::LightGuide::load(bytes, loaded));
+        OK(loaded.merge(lights));
+        TRUTH(loaded.merge(loaded) == LODESTAR_STATUS_INVALID_ARGUMENT);
     }
     {
         LodestarEnvGuideConfig config;
