@@ -47,6 +47,9 @@ pub struct RenderSettings {
     pub schedule: Schedule,
     /// How the iterative schedule's iterations combine into the image.
     pub combine: Combine,
+    /// The most of a seconds budget the iterative schedule trains for, in (0, 1]
+    /// ([`DEFAULT_TRAINING_SHARE`](crate::schedule::DEFAULT_TRAINING_SHARE)).
+    pub training_share: f64,
 }
 
 /// What the passes did.
@@ -151,7 +154,7 @@ pub fn render<I: Intersector, G: Guide>(
     let mut statistics = RenderStatistics::default();
     let start = Instant::now();
     let guided = settings.integrator.method.uses_guide() && (guide.is_some() || focal.is_some());
-    let mut training = Training::new(guided && settings.schedule == Schedule::Iterative);
+    let mut training = Training::new(guided && settings.schedule == Schedule::Iterative, settings.training_share);
     // Passes traced so far, kept or not: each gets its own seed.
     let mut traced = 0u32;
     loop {

@@ -127,6 +127,7 @@ fn cornell_renders_the_same_with_either_intersector() {
             train_seconds: 0.0,
             schedule: reference_tracer::schedule::Schedule::Online,
             combine: reference_tracer::film::Combine::default(),
+            training_share: reference_tracer::schedule::DEFAULT_TRAINING_SHARE,
         };
         let (_, statistics) = reference_tracer::render::render(
             &prepared.scene,

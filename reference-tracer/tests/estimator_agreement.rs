@@ -112,6 +112,7 @@ fn a_furnace_of_split_lights_converges_to_le_over_one_minus_albedo() {
             train_seconds: 0.0,
             schedule: Schedule::Online,
             combine: reference_tracer::film::Combine::default(),
+            training_share: reference_tracer::schedule::DEFAULT_TRAINING_SHARE,
         };
         let (_, statistics) = prepared.render(&render, |_| {}).unwrap();
         let estimate = mean_estimate(&statistics);
@@ -330,6 +331,7 @@ fn assert_focal_agrees(scene: &std::path::Path, spp: u32, reference_spp: u32, ga
             train_seconds: 0.0,
             schedule: Schedule::Iterative,
             combine,
+            training_share: reference_tracer::schedule::DEFAULT_TRAINING_SHARE,
         };
         let (image, statistics) = prepared.render(&render, |_| {}).unwrap();
         let boxes = prepared.focal_guide.as_ref().map_or(0, |f| f.boxes().len());
@@ -382,6 +384,7 @@ fn assert_split_lights_agree(scene: &std::path::Path, spp: u32, reference_spp: u
         train_seconds: 0.0,
         schedule: Schedule::Iterative,
         combine: reference_tracer::film::Combine::default(),
+        training_share: reference_tracer::schedule::DEFAULT_TRAINING_SHARE,
     };
     let (_, statistics) = prepared.render(&render, |_| {}).unwrap();
     support::assert_agree("guided-nee over split lights vs nee", &mean_estimate(&statistics), &reference);
@@ -424,6 +427,7 @@ fn path_continuation_targets_carry_russian_roulette() {
             train_seconds: 0.0,
             schedule: Schedule::Online,
             combine: reference_tracer::film::Combine::default(),
+            training_share: reference_tracer::schedule::DEFAULT_TRAINING_SHARE,
         };
         prepared.render(&render, |_| {}).unwrap();
         let Some(DirectionalGuide::Tree(tree)) = &prepared.guide else { panic!("a tree guide") };
@@ -512,6 +516,7 @@ fn gated_next_event_estimation_agrees_with_lights_and_an_environment() {
         train_seconds: 0.0,
         schedule: Schedule::Online,
         combine: reference_tracer::film::Combine::default(),
+        training_share: reference_tracer::schedule::DEFAULT_TRAINING_SHARE,
     };
     let (_, statistics) = prepared.render(&render, |_| {}).unwrap();
     let gate = prepared.gate.as_ref().expect("the gate was built");

@@ -62,6 +62,7 @@ fn render(scene: &Path, device: Device, method: Method, spp: u32, seed: u64) -> 
         train_seconds: 0.0,
         schedule: reference_tracer::schedule::Schedule::Online,
         combine: reference_tracer::film::Combine::default(),
+        training_share: reference_tracer::schedule::DEFAULT_TRAINING_SHARE,
     };
     prepared.render(&settings, |_| {}).unwrap()
 }
@@ -119,6 +120,7 @@ fn unsupported_scenes_are_refused_with_a_reason() {
         train_seconds: 0.0,
         schedule: reference_tracer::schedule::Schedule::Online,
         combine: reference_tracer::film::Combine::default(),
+        training_share: reference_tracer::schedule::DEFAULT_TRAINING_SHARE,
     };
     let error = prepared.render(&settings, |_| {}).expect_err("refused");
     assert!(error.contains("image environment"), "{error}");
@@ -174,6 +176,7 @@ fn render_learning(
         train_seconds: 0.0,
         schedule: reference_tracer::schedule::Schedule::Online,
         combine: reference_tracer::film::Combine::default(),
+        training_share: reference_tracer::schedule::DEFAULT_TRAINING_SHARE,
     };
     let (_, statistics) = prepared.render(&settings, |_| {}).unwrap();
     (statistics, prepared.guide.expect("a guide was built"))
@@ -446,6 +449,7 @@ fn gpu_learned_guide_serves_the_cpu(settings: DirectionalGuideSettings, bytes: &
         train_seconds: 0.0,
         schedule: reference_tracer::schedule::Schedule::Online,
         combine: reference_tracer::film::Combine::default(),
+        training_share: reference_tracer::schedule::DEFAULT_TRAINING_SHARE,
     };
     let (_, guided) = prepared.render(&render_settings, |_| {}).unwrap();
     let (_, nee) = render(&scene, Device::Cpu, Method::Nee, 192, seed + 1);
@@ -545,6 +549,7 @@ fn gpu_training_passes_are_discarded_like_the_cpus() {
         train_seconds: 0.5,
         schedule: reference_tracer::schedule::Schedule::Online,
         combine: reference_tracer::film::Combine::default(),
+        training_share: reference_tracer::schedule::DEFAULT_TRAINING_SHARE,
     };
     let (_, statistics) = prepared.render(&settings, |_| {}).unwrap();
     assert!(statistics.training_passes > 0, "no training pass");

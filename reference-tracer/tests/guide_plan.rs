@@ -126,6 +126,7 @@ fn a_scene_of_mirrors_and_glass_gets_no_directional_guide() {
         train_seconds: 0.0,
         schedule: reference_tracer::schedule::Schedule::Online,
         combine: reference_tracer::film::Combine::default(),
+        training_share: reference_tracer::schedule::DEFAULT_TRAINING_SHARE,
     };
     let mut prepared = prepared;
     let (image, _) = prepared.render(&settings, |_| {}).unwrap();

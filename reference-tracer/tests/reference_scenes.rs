@@ -32,6 +32,7 @@ fn render_small(path: &Path, width: u32, height: u32, spp: u32) -> Image {
         train_seconds: 0.0,
         schedule: reference_tracer::schedule::Schedule::Online,
         combine: reference_tracer::film::Combine::default(),
+        training_share: reference_tracer::schedule::DEFAULT_TRAINING_SHARE,
     };
     let (image, _) = prepared.render(&settings, |_| {}).unwrap();
     assert!(

@@ -139,6 +139,7 @@ pub fn render_scheduled(
         train_seconds: 0.0,
         schedule,
         combine: reference_tracer::film::Combine::default(),
+        training_share: reference_tracer::schedule::DEFAULT_TRAINING_SHARE,
     };
     prepared.render(&settings, |_| {}).unwrap()
 }

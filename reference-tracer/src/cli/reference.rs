@@ -70,6 +70,7 @@ pub(super) fn run_reference(args: &ReferenceArgs) -> Result<(), String> {
         train_seconds: 0.0,
         schedule: Schedule::Online,
         combine: Combine::default(),
+        training_share: crate::schedule::DEFAULT_TRAINING_SHARE,
     };
     let (image, statistics, _) = pool.install(|| render_prepared(&mut prepared, &settings, None, &[], true))?;
     write_outputs(&args.out, &image, args.pfm)?;

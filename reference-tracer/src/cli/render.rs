@@ -99,6 +99,7 @@ pub(super) fn run_render(args: &RenderArgs) -> Result<(), String> {
         train_seconds: options.train_seconds,
         schedule: options.schedule(),
         combine: options.combine,
+        training_share: options.train_share,
     };
     let (image, statistics, checkpoints) =
         pool.install(|| render_prepared(&mut prepared, &settings, reference.as_ref(), &[], true))?;
