@@ -32,6 +32,22 @@ pub(crate) unsafe fn borrow<'a, T>(pointer: *const T, name: &str) -> Result<&'a 
     Ok(unsafe { &*pointer })
 }
 
+/// Borrows `guide` to change and `other` to read, for a merge: both checked non-NULL
+/// and aligned, and two different handles.
+///
+/// # Safety
+/// Non-NULL pointers must point to live values; no other call may use `guide`.
+pub(crate) unsafe fn merge_pair<'a, T>(guide: *mut T, other: *const T) -> Result<(&'a mut T, &'a T), Failure> {
+    check_pointer(guide.cast_const(), "guide")?;
+    check_pointer(other, "other")?;
+    if std::ptr::eq(guide.cast_const(), other) {
+        return Err(Failure::new(LodestarStatus::InvalidArgument, "`other` is `guide` itself".to_string()));
+    }
+    // SAFETY: checked above; validity and exclusivity are the caller's contract, and the
+    // two do not alias.
+    Ok(unsafe { (&mut *guide, &*other) })
+}
+
 /// An output location, checked up front so a call fails before doing any work.
 pub(crate) struct Output<T>(*mut T);
 

@@ -6,7 +6,7 @@ use std::ffi::c_void;
 use glam::{Vec2, Vec3};
 use guiding_core::{Guide, HemisphereGrid, Lambertian, ScatteringFunction, Triangle};
 
-use crate::arguments::{borrow, direction, finite, point, slice, uniform, Output};
+use crate::arguments::{borrow, direction, finite, merge_pair, point, slice, uniform, Output};
 use crate::config::{LodestarGuideConfig, LodestarStructure};
 use crate::status::{guarded, Failure, LodestarStatus};
 use crate::structure::{with_structure, CRegions, GuideStructure};
@@ -408,13 +408,9 @@ pub unsafe extern "C" fn lodestar_guide_merge(
     other: *const LodestarGuide,
 ) -> LodestarStatus {
     guarded("lodestar_guide_merge", || {
-        // SAFETY (both): checked non-NULL and aligned; liveness and exclusivity are the caller's contract.
-        unsafe { borrow(guide.cast_const(), "guide") }?;
-        let other = unsafe { borrow(other, "other") }?;
-        if std::ptr::eq(guide.cast_const(), other) {
-            return Err(Failure::new(LodestarStatus::InvalidArgument, "`other` is `guide` itself".to_string()));
-        }
-        match (&mut unsafe { &mut *guide }.structure, &other.structure) {
+        // SAFETY: the caller's contract.
+        let (guide, other) = unsafe { merge_pair(guide, other) }?;
+        match (&mut guide.structure, &other.structure) {
             (GuideStructure::Hemisphere(grid), GuideStructure::Hemisphere(theirs)) => {
                 grid.merge(theirs).map_err(|e| Failure::from_core(&e, "merging"))
             }

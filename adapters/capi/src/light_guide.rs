@@ -5,8 +5,8 @@
 use glam::Vec3;
 use guiding_core::{LightCell, LightGuide, LightGuideSettings, LightUpdateRule};
 
-use crate::arguments::{borrow, check_struct_size, finite, point, slice, uniform, Output};
-use crate::serialize::write_bytes;
+use crate::arguments::{borrow, check_struct_size, finite, merge_pair, point, slice, uniform, Output};
+use crate::serialize::write_bytes_or_size;
 use crate::status::{guarded, Failure, LodestarStatus};
 use crate::types::{LodestarUpdateOutcome, LodestarVec3};
 
@@ -332,13 +332,9 @@ pub unsafe extern "C" fn lodestar_light_guide_merge(
     other: *const LodestarLightGuide,
 ) -> LodestarStatus {
     guarded("lodestar_light_guide_merge", || {
-        // SAFETY (both): checked non-NULL and aligned; liveness and exclusivity are the caller's contract.
-        unsafe { borrow(guide.cast_const(), "guide") }?;
-        let other = unsafe { borrow(other, "other") }?;
-        if std::ptr::eq(guide.cast_const(), other) {
-            return Err(Failure::new(LodestarStatus::InvalidArgument, "`other` is `guide` itself".to_string()));
-        }
-        unsafe { &mut *guide }.guide.merge(&other.guide).map_err(|e| Failure::from_core(&e, "merging"))
+        // SAFETY: the caller's contract.
+        let (guide, other) = unsafe { merge_pair(guide, other) }?;
+        guide.guide.merge(&other.guide).map_err(|e| Failure::from_core(&e, "merging"))
     })
 }
 
@@ -361,14 +357,8 @@ pub unsafe extern "C" fn lodestar_light_guide_save(
         // SAFETY (all three): the caller's contract.
         let guide = unsafe { shared(guide) }?;
         let out = unsafe { Output::new(out_size, "out_size") }?;
-        let bytes = guide.to_bytes();
-        if buffer.is_null() && capacity == 0 {
-            out.write(bytes.len());
-            return Ok(());
-        }
-        unsafe { slice(buffer.cast_const(), capacity, "buffer") }?;
-        // SAFETY: `buffer` was checked, and is writable for `capacity` bytes by the caller's contract.
-        unsafe { write_bytes(&bytes, buffer, capacity, out) }
+        // SAFETY: `buffer` is NULL or writable for `capacity` bytes by the caller's contract.
+        unsafe { write_bytes_or_size(&guide.to_bytes(), buffer, capacity, out) }
     })
 }
 

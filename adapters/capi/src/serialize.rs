@@ -77,6 +77,26 @@ pub(crate) unsafe fn write_bytes(
     Ok(())
 }
 
+/// `write_bytes` for the save calls that also answer a size query: with `buffer` NULL
+/// and `capacity` 0 only the length is written to `out`.
+///
+/// # Safety
+/// `buffer` must be NULL or writable for `capacity` bytes.
+pub(crate) unsafe fn write_bytes_or_size(
+    bytes: &[u8],
+    buffer: *mut u8,
+    capacity: usize,
+    out: Output<usize>,
+) -> Result<(), Failure> {
+    if buffer.is_null() && capacity == 0 {
+        out.write(bytes.len());
+        return Ok(());
+    }
+    // SAFETY (both): checked here, then writable for `capacity` bytes by the caller's contract.
+    unsafe { slice(buffer.cast_const(), capacity, "buffer") }?;
+    unsafe { write_bytes(bytes, buffer, capacity, out) }
+}
+
 /// Reads a guide of any structure saved by `lodestar_guide_save` (the bytes are copied; the buffer may
 /// be freed afterwards). A damaged, truncated or foreign buffer returns
 /// `LODESTAR_STATUS_DECODE_FAILED` naming the field and byte offset.
