@@ -593,6 +593,13 @@ enum LodestarStatus lodestar_env_guide_update(const struct LodestarEnvGuide *gui
 // `guide` must be NULL or a live handle no other call is using.
 enum LodestarStatus lodestar_env_guide_rebuild(struct LodestarEnvGuide *guide);
 
+// Forgets everything the guide learned (selection by power and the uniform share, as
+// created). Needs the guide to itself.
+//
+// # Safety
+// `guide` must be NULL or a live handle no other call is using.
+enum LodestarStatus lodestar_env_guide_reset(struct LodestarEnvGuide *guide);
+
 // Adds what `other` learned (the same scene and settings, e.g. another node of a
 // render farm; loaded from its saved bytes) to `guide` and rebuilds it; exact, as
 // guiding-core's `EnvTileGuide::merge` says. Guides of another scene or settings are
@@ -778,6 +785,14 @@ enum LodestarStatus lodestar_guide_rebuild(struct LodestarGuide *guide);
 enum LodestarStatus lodestar_guide_merge(struct LodestarGuide *guide,
                                          const struct LodestarGuide *other);
 
+// Forgets everything the guide learned: it samples and estimates as when it was
+// created (the same probes, or one region over the same bounds). Needs the guide to
+// itself. Regions located before are stale afterwards.
+//
+// # Safety
+// `guide` must be NULL or a live handle no other thread is using.
+enum LodestarStatus lodestar_guide_reset(struct LodestarGuide *guide);
+
 // Sizes and counters. Thread-safe (a snapshot of counters others may be updating).
 //
 // # Safety
@@ -870,6 +885,13 @@ enum LodestarStatus lodestar_light_guide_update(const struct LodestarLightGuide 
 // # Safety
 // `guide` must be NULL or a live handle no other call is using.
 enum LodestarStatus lodestar_light_guide_rebuild(struct LodestarLightGuide *guide);
+
+// Forgets everything the guide learned (selection by power and the uniform share, as
+// created). Needs the guide to itself.
+//
+// # Safety
+// `guide` must be NULL or a live handle no other call is using.
+enum LodestarStatus lodestar_light_guide_reset(struct LodestarLightGuide *guide);
 
 // Adds what `other` learned (the same scene and settings, e.g. another node of a
 // render farm; loaded from its saved bytes) to `guide` and rebuilds it; exact, as

@@ -152,6 +152,8 @@ public:
     Status validate() const noexcept { return lodestar_guide_validate(get()); }
     /// Between passes, with no other call on this guide in flight.
     Status rebuild() noexcept { return lodestar_guide_rebuild(get()); }
+    /// Forgets everything learned (as created); regions located before are stale.
+    Status reset() noexcept { return lodestar_guide_reset(get()); }
     /// Adds what `other` learned (hemisphere grids of the same scene and config).
     Status merge(const Guide& other) noexcept { return lodestar_guide_merge(get(), other.get()); }
     Status save(std::vector<uint8_t>& out) const noexcept {
@@ -285,6 +287,7 @@ public:
         return lodestar_light_guide_update(get(), cell, light, contribution, unoccluded ? 1u : 0u, &out);
     }
     Status rebuild() noexcept { return lodestar_light_guide_rebuild(get()); }
+    Status reset() noexcept { return lodestar_light_guide_reset(get()); }
     Status merge(const LightGuide& other) noexcept { return lodestar_light_guide_merge(get(), other.get()); }
     Status save(std::vector<uint8_t>& out) const noexcept {
         size_t size = 0;
@@ -335,6 +338,7 @@ public:
         return lodestar_env_guide_update(get(), cell, &sample, integrand, &out);
     }
     Status rebuild() noexcept { return lodestar_env_guide_rebuild(get()); }
+    Status reset() noexcept { return lodestar_env_guide_reset(get()); }
     Status merge(const EnvGuide& other) noexcept { return lodestar_env_guide_merge(get(), other.get()); }
 
 #ifdef LODESTAR_HPP_EXCEPTIONS

@@ -424,6 +424,35 @@ pub unsafe extern "C" fn lodestar_guide_merge(
     })
 }
 
+/// Forgets everything the guide learned: it samples and estimates as when it was
+/// created (the same probes, or one region over the same bounds). Needs the guide to
+/// itself. Regions located before are stale afterwards.
+///
+/// # Safety
+/// `guide` must be NULL or a live handle no other thread is using.
+#[no_mangle]
+pub unsafe extern "C" fn lodestar_guide_reset(guide: *mut LodestarGuide) -> LodestarStatus {
+    guarded("lodestar_guide_reset", || {
+        // SAFETY: the caller's contract; checked non-NULL and aligned first.
+        unsafe { borrow(guide.cast_const(), "guide") }?;
+        let guide = unsafe { &mut *guide };
+        let fresh = |e: guiding_core::Error| Failure::from_core(&e, "resetting");
+        match &mut guide.structure {
+            GuideStructure::Hemisphere(grid) => grid.reset(),
+            GuideStructure::Volume(volume) => {
+                let (low, high) = volume.bounds();
+                *volume = guiding_core::IrradianceVolume::new(low, high, *volume.settings()).map_err(fresh)?;
+            }
+            GuideStructure::Mixture(mixture) => {
+                let (low, high) = mixture.bounds();
+                *mixture = guiding_core::GaussianMixture::new(low, high, *mixture.settings()).map_err(fresh)?;
+            }
+            GuideStructure::Tree(tree) => tree.reset(),
+        }
+        Ok(())
+    })
+}
+
 /// Sizes and counters. Thread-safe (a snapshot of counters others may be updating).
 ///
 /// # Safety

@@ -47,20 +47,21 @@ pub use config::{
 pub use env_guide::{
     lodestar_env_guide_cell, lodestar_env_guide_config_default, lodestar_env_guide_create, lodestar_env_guide_load,
     lodestar_env_guide_merge, lodestar_env_guide_pdf, lodestar_env_guide_rebuild, lodestar_env_guide_release,
-    lodestar_env_guide_sample, lodestar_env_guide_save, lodestar_env_guide_update, LodestarEnvGuide,
-    LodestarEnvGuideConfig, LodestarEnvSample, LodestarSunDisk,
+    lodestar_env_guide_reset, lodestar_env_guide_sample, lodestar_env_guide_save, lodestar_env_guide_update,
+    LodestarEnvGuide, LodestarEnvGuideConfig, LodestarEnvSample, LodestarSunDisk,
 };
 pub use guide::{
     lodestar_guide_create, lodestar_guide_estimate_integral, lodestar_guide_estimate_integral_lambertian,
     lodestar_guide_locate, lodestar_guide_merge, lodestar_guide_pdf, lodestar_guide_rebuild, lodestar_guide_release,
-    lodestar_guide_sample, lodestar_guide_stats, lodestar_guide_structure, lodestar_guide_update,
+    lodestar_guide_reset, lodestar_guide_sample, lodestar_guide_stats, lodestar_guide_structure, lodestar_guide_update,
     lodestar_guide_update_sampled, lodestar_guide_validate, LodestarEvalCos, LodestarGuide,
 };
 pub use light_guide::{
     lodestar_light_guide_cell, lodestar_light_guide_config_default, lodestar_light_guide_create,
     lodestar_light_guide_load, lodestar_light_guide_merge, lodestar_light_guide_probability,
-    lodestar_light_guide_rebuild, lodestar_light_guide_release, lodestar_light_guide_save, lodestar_light_guide_select,
-    lodestar_light_guide_update, LodestarLightGuide, LodestarLightGuideConfig, LodestarLightRule,
+    lodestar_light_guide_rebuild, lodestar_light_guide_release, lodestar_light_guide_reset, lodestar_light_guide_save,
+    lodestar_light_guide_select, lodestar_light_guide_update, LodestarLightGuide, LodestarLightGuideConfig,
+    LodestarLightRule,
 };
 pub use recorder::{
     lodestar_path_recorder_arrive, lodestar_path_recorder_carry, lodestar_path_recorder_clear,

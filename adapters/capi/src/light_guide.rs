@@ -317,6 +317,21 @@ pub unsafe extern "C" fn lodestar_light_guide_rebuild(guide: *mut LodestarLightG
     })
 }
 
+/// Forgets everything the guide learned (selection by power and the uniform share, as
+/// created). Needs the guide to itself.
+///
+/// # Safety
+/// `guide` must be NULL or a live handle no other call is using.
+#[no_mangle]
+pub unsafe extern "C" fn lodestar_light_guide_reset(guide: *mut LodestarLightGuide) -> LodestarStatus {
+    guarded("lodestar_light_guide_reset", || {
+        // SAFETY: checked non-NULL and aligned; exclusivity is the caller's contract.
+        unsafe { borrow(guide.cast_const(), "guide") }?;
+        unsafe { &mut *guide }.guide.reset();
+        Ok(())
+    })
+}
+
 /// Adds what `other` learned (the same scene and settings, e.g. another node of a
 /// render farm; loaded from its saved bytes) to `guide` and rebuilds it; exact, as
 /// guiding-core's `LightGuide::merge` says. Guides of another scene or settings are

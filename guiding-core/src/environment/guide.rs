@@ -192,6 +192,16 @@ impl EnvTileGuide {
         Ok(())
     }
 
+    /// Forgets everything learned: every value and update count back to 0 (sampling by
+    /// power and the uniform share alone, as [`new`](Self::new) made it).
+    pub fn reset(&mut self) {
+        for counter in self.values.iter().chain(&self.updates) {
+            counter.store(0, Ordering::Relaxed);
+        }
+        self.rejected.store(0, Ordering::Relaxed);
+        self.rebuild();
+    }
+
     /// Rebuilds every cell's lobe CDF from what it learned: probability
     /// (1 - power_mix - uniform_mix)·V/ΣV + power_mix·power share + uniform_mix/lit lobes
     /// (cells that learned nothing yet use the power and uniform shares alone). Lobes
@@ -390,6 +400,20 @@ mod tests {
         }
         guide.rebuild();
         (guide, cell)
+    }
+
+    #[test]
+    fn reset_gives_the_guide_made_fresh() {
+        let (mut learned, cell) = learned_guide(true);
+        let tiles = EnvironmentTiles::new(64, 32, &sky(64, 32), [16, 8]).unwrap();
+        let sun = SunDisk::new(Vec3::new(0.4, 0.9, -0.2), 2f32.to_radians(), 500.0).unwrap();
+        let settings = EnvTileGuideSettings { resolution: Some([2, 2, 2]), ..Default::default() };
+        let fresh = EnvTileGuide::new(Vec3::ZERO, Vec3::ONE, tiles, Some(sun), settings).unwrap();
+        assert_ne!(learned.to_bytes(), fresh.to_bytes());
+        learned.reset();
+        assert_eq!(learned.to_bytes(), fresh.to_bytes());
+        let d = Vec3::new(0.3, 0.5, 0.8).normalize();
+        assert_eq!(learned.distribution(cell).pdf(d), fresh.distribution(cell).pdf(d));
     }
 
     #[test]

@@ -315,6 +315,25 @@ impl HemisphereGrid {
         Ok(())
     }
 
+    /// Forgets everything learned: every Q back to `initial_q`, every count to 0, epoch
+    /// 0; the probes stay. Equals a grid freshly built over the same surfaces.
+    pub fn reset(&mut self) {
+        let entries = self.q.len();
+        let state = GridState {
+            probe_spacing: self.probe_spacing,
+            positions: self.positions.clone(),
+            normals: self.normals.clone(),
+            probe_visits: alloc::vec![0; self.positions.len()],
+            q: alloc::vec![self.settings.initial_q; entries],
+            patch_visits: alloc::vec![0; entries],
+            cdf: None,
+            epoch: 0,
+            rejected_non_finite: 0,
+            rejected_negative: 0,
+        };
+        *self = Self::assemble(self.settings, state);
+    }
+
     /// The settings the grid was built with.
     pub fn settings(&self) -> &HemisphereGridSettings {
         &self.settings
@@ -767,6 +786,24 @@ mod tests {
     /// Two grids that each learned half of a stream, merged, hold what one grid learned
     /// from all of it (simple average, weighted and unweighted updates alike); a grid of
     /// other probes is refused and left as it was.
+    #[test]
+    fn reset_gives_the_grid_built_fresh() {
+        let positions: Vec<Vec3> = (0..12).map(|i| Vec3::new((i % 4) as f32, 0.0, (i / 4) as f32 * 0.7)).collect();
+        let probes = ProbeSet { normals: vec![Vec3::Y; positions.len()], positions, spacing: 0.7 };
+        let settings = HemisphereGridSettings::default();
+        let fresh = HemisphereGrid::from_probes(&probes, settings).unwrap();
+        let mut grid = HemisphereGrid::from_probes(&probes, settings).unwrap();
+        let probe = grid.locate(Vec3::new(2.1, 0.0, 0.6), Vec3::Y).unwrap();
+        for i in 0..100 {
+            grid.update(probe, Vec3::new(0.1 * (i % 7) as f32, 1.0, 0.0).normalize(), 5.0);
+        }
+        grid.update(probe, Vec3::Y, f32::NAN);
+        grid.rebuild_sampling();
+        assert_ne!(grid.to_bytes(), fresh.to_bytes());
+        grid.reset();
+        assert_eq!(grid.to_bytes(), fresh.to_bytes());
+    }
+
     #[test]
     fn merging_halves_gives_the_grid_that_learned_everything() {
         use crate::low_discrepancy::Pcg32;

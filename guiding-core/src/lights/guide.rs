@@ -197,6 +197,16 @@ impl LightGuide {
         Ok(())
     }
 
+    /// Forgets everything learned: every value, update and shadow-ray count back to 0
+    /// (selection by power and the uniform share alone, as [`new`](Self::new) made it).
+    pub fn reset(&mut self) {
+        for counter in self.values.iter().chain(&self.updates).chain(&self.shots) {
+            counter.store(0, Ordering::Relaxed);
+        }
+        self.rejected.store(0, Ordering::Relaxed);
+        self.rebuild();
+    }
+
     /// Rebuilds every cell's selection CDF from what it learned: probability
     /// (1 - power_mix - uniform_mix)·V/ΣV + power_mix·power share + uniform_mix/lights
     /// (cells that learned nothing yet use power and uniform shares alone). Call between
@@ -280,6 +290,22 @@ mod tests {
 
     fn guide(powers: &[f32], settings: LightGuideSettings) -> LightGuide {
         LightGuide::new(Vec3::ZERO, Vec3::new(4.0, 2.0, 1.0), powers, settings).unwrap()
+    }
+
+    #[test]
+    fn reset_gives_the_guide_made_fresh() {
+        let fresh = guide(&[1.0, 3.0], LightGuideSettings::default());
+        let mut learned = guide(&[1.0, 3.0], LightGuideSettings::default());
+        let cell = learned.cell(Vec3::ONE).unwrap();
+        for i in 0..50 {
+            learned.update(cell, i % 2, 2.0, i % 3 != 0);
+        }
+        learned.update(cell, 0, f32::NAN, true);
+        learned.rebuild();
+        assert_ne!(learned.to_bytes(), fresh.to_bytes());
+        learned.reset();
+        assert_eq!(learned.to_bytes(), fresh.to_bytes());
+        assert_eq!(learned.probability(cell, 1), fresh.probability(cell, 1));
     }
 
     #[test]

@@ -149,6 +149,16 @@ impl SpatialDirectionalTree {
         })
     }
 
+    /// Forgets everything learned: one leaf over the same box, one uniform quadtree, no
+    /// records, epoch 0 (as [`new`](Self::new) made it, to the rounding of the box).
+    pub fn reset(&mut self) {
+        let extent = self.extent / (1.0 + 2e-6);
+        let low = self.low + extent * 1e-6;
+        if let Ok(fresh) = Self::new(low, low + extent, self.settings) {
+            *self = fresh;
+        }
+    }
+
     /// The settings it was built with.
     pub fn settings(&self) -> &SpatialDirectionalTreeSettings {
         &self.settings
@@ -640,6 +650,27 @@ mod tests {
         assert!(matches!(huge, Err(Error::InvalidSetting { name: "bounds", .. })));
         let flat = SpatialDirectionalTree::new(Vec3::ONE, Vec3::ONE, settings).unwrap();
         flat.validate().unwrap();
+    }
+
+    #[test]
+    fn reset_forgets_every_record_and_split() {
+        let mut tree = tree(SpatialDirectionalTreeSettings { min_split_records: 100, ..Default::default() });
+        let mut rng = Pcg32::new(2, 5);
+        for _ in 0..4 {
+            for _ in 0..4000 {
+                let p = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - 1.0;
+                let region = tree.locate(p, Vec3::Z).unwrap();
+                tree.update_sampled(region, Vec3::Z, 1.0, 1.0);
+            }
+            tree.rebuild_sampling();
+        }
+        assert!(tree.leaf_count() > 1);
+        tree.reset();
+        assert_eq!((tree.leaf_count(), tree.directional_node_count(), tree.stats().accepted_updates), (1, 1, 0));
+        tree.validate().unwrap();
+        let region = tree.locate(Vec3::ZERO, Vec3::Z).unwrap();
+        let uniform = tree.pdf(region, Vec3::new(0.3, 0.2, 0.9).normalize());
+        assert!((uniform - tree.pdf(region, Vec3::Z)).abs() < 1e-6, "a fresh tree samples uniformly");
     }
 
     #[test]

@@ -299,6 +299,12 @@ static void buffer_errors(LodestarGuide *guide) {
     } else {
         EXPECT(lodestar_guide_merge(guide, loaded), LODESTAR_STATUS_INVALID_ARGUMENT, "hemisphere grids");
     }
+    /* Reset: the copy forgets everything and serializes as a fresh guide of its kind. */
+    EXPECT(lodestar_guide_reset(NULL), LODESTAR_STATUS_NULL_ARGUMENT, "guide");
+    EXPECT_OK(lodestar_guide_reset(loaded));
+    EXPECT_OK(lodestar_guide_validate(loaded));
+    EXPECT_OK(lodestar_guide_stats(loaded, &copy));
+    TRUTH(copy.accepted_updates == 0 && copy.rejected_non_finite == 0 && copy.epochs == 0);
     EXPECT_OK(lodestar_guide_release(loaded));
     free(bytes);
 }
@@ -440,6 +446,11 @@ static void light_guide_errors(void) {
     EXPECT_OK(lodestar_light_guide_create(&config, low, far_high, powers, 3, &elsewhere));
     EXPECT(lodestar_light_guide_merge(loaded, elsewhere), LODESTAR_STATUS_INVALID_ARGUMENT, "bounds");
     EXPECT_OK(lodestar_light_guide_release(elsewhere));
+    EXPECT(lodestar_light_guide_reset(NULL), LODESTAR_STATUS_NULL_ARGUMENT, "guide");
+    EXPECT_OK(lodestar_light_guide_reset(loaded));
+    float reset_p2 = 0;
+    EXPECT_OK(lodestar_light_guide_probability(loaded, cell, 2, &reset_p2));
+    TRUTH(reset_p2 > 0.4f); /* by power again: light 2 has half of it */
     EXPECT_OK(lodestar_light_guide_release(loaded));
     free(bytes);
     EXPECT_OK(lodestar_light_guide_release(lights));
@@ -674,6 +685,10 @@ static void env_guide_errors(void) {
     EXPECT_OK(lodestar_env_guide_merge(loaded, env));
     EXPECT_OK(lodestar_env_guide_pdf(loaded, cell, above, &loaded_up));
     TRUTH(fabsf(loaded_up - pdf_up) <= 1e-5f * pdf_up);
+    EXPECT_OK(lodestar_env_guide_reset(loaded));
+    float reset_down = 0;
+    EXPECT_OK(lodestar_env_guide_pdf(loaded, cell, down, &reset_down));
+    TRUTH(reset_down > pdf_down); /* the sky below is no longer learned away */
     EXPECT_OK(lodestar_env_guide_release(loaded));
     free(bytes);
     EXPECT(lodestar_env_guide_release(NULL), LODESTAR_STATUS_NULL_ARGUMENT, "guide");

@@ -41,6 +41,14 @@ void exercise(lodestar::Guide& guide, uint32_t structure) {
     OK(guide.update_sampled(region, sample.direction, 2.0f, sample.pdf, outcome));
     OK(guide.rebuild());
     OK(guide.validate());
+    lodestar::Guide copy;
+    std::vector<uint8_t> snapshot;
+    OK(guide.save(snapshot));
+    OK(lodestar::Guide::load(snapshot, copy));
+    OK(copy.reset());
+    LodestarGuideStats reset_stats{};
+    OK(copy.stats(reset_stats));
+    TRUTH(reset_stats.accepted_updates == 0);
     std::vector<uint8_t> bytes;
     OK(guide.save(bytes));
     TRUTH(!bytes.empty());
