@@ -119,6 +119,19 @@ pub(crate) fn direction(value: LodestarVec3, name: &str) -> Result<Vec3, Failure
     })
 }
 
+/// An index a caller passed, checked below `count`: `name` is the argument, `what` what
+/// it counts ("cell", "light"). Anything else is `INVALID_ARGUMENT` naming both.
+pub(crate) fn index_below(value: u32, count: usize, name: &str, what: &str) -> Result<u32, Failure> {
+    if (value as usize) < count {
+        Ok(value)
+    } else {
+        Err(Failure::new(
+            LodestarStatus::InvalidArgument,
+            format!("`{name}` = {value} is not a {what} of this guide (it has {count})"),
+        ))
+    }
+}
+
 /// A uniform random number in [0, 1].
 pub(crate) fn uniform(value: f32, name: &str) -> Result<f32, Failure> {
     finite(value, name)?;

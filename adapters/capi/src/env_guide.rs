@@ -7,7 +7,9 @@ use glam::{Vec2, Vec3};
 use guiding_core::environment::{EnvCell, EnvLobe, EnvSample, EnvTileGuide, EnvironmentTiles, SunDisk};
 use guiding_core::{DirectionalDistribution, EnvTileGuideSettings};
 
-use crate::arguments::{borrow, check_struct_size, direction, finite, merge_pair, point, slice, uniform, Output};
+use crate::arguments::{
+    borrow, check_struct_size, direction, finite, index_below, merge_pair, point, slice, uniform, Output,
+};
 use crate::config::{budget, resolution};
 use crate::serialize::write_bytes_or_size;
 use crate::status::{guarded, Failure, LodestarStatus};
@@ -145,14 +147,7 @@ unsafe fn shared<'a>(guide: *const LodestarEnvGuide) -> Result<&'a EnvTileGuide,
 
 /// A cell index the guide has.
 fn cell(guide: &EnvTileGuide, cell: u32) -> Result<EnvCell, Failure> {
-    if (cell as usize) < guide.cell_count() {
-        Ok(EnvCell(cell))
-    } else {
-        Err(Failure::new(
-            LodestarStatus::InvalidArgument,
-            format!("`cell` = {cell} is not a cell of this guide (it has {})", guide.cell_count()),
-        ))
-    }
+    index_below(cell, guide.cell_count(), "cell", "cell").map(EnvCell)
 }
 
 /// Fills `out_config` with guiding-core's environment guide defaults (1 MiB, 32 × 16
@@ -311,16 +306,11 @@ pub unsafe extern "C" fn lodestar_env_guide_update(
         let sample = unsafe { borrow(sample, "sample") }?;
         let out = unsafe { Output::new(out_outcome, "out_outcome") }?;
         let cell = self::cell(guide, cell)?;
-        if sample.lobe as usize >= guide.lobe_count() {
-            return Err(Failure::new(
-                LodestarStatus::InvalidArgument,
-                format!("`sample->lobe` = {} is not a lobe of this guide (it has {})", sample.lobe, guide.lobe_count()),
-            ));
-        }
+        let lobe = index_below(sample.lobe, guide.lobe_count(), "sample->lobe", "lobe")?;
         let core = EnvSample {
             direction: direction(sample.direction, "sample->direction")?,
             pdf: finite(sample.pdf, "sample->pdf")?,
-            lobe: EnvLobe(sample.lobe),
+            lobe: EnvLobe(lobe),
             lobe_pdf: finite(sample.lobe_pdf, "sample->lobe_pdf")?,
         };
         if core.lobe_pdf <= 0.0 {

@@ -5,7 +5,7 @@
 use glam::Vec3;
 use guiding_core::{LightCell, LightGuide, LightGuideSettings, LightUpdateRule};
 
-use crate::arguments::{borrow, check_struct_size, finite, merge_pair, point, slice, uniform, Output};
+use crate::arguments::{borrow, check_struct_size, finite, index_below, merge_pair, point, slice, uniform, Output};
 use crate::serialize::write_bytes_or_size;
 use crate::status::{guarded, Failure, LodestarStatus};
 use crate::types::{LodestarUpdateOutcome, LodestarVec3};
@@ -126,26 +126,12 @@ unsafe fn shared<'a>(guide: *const LodestarLightGuide) -> Result<&'a LightGuide,
 
 /// A cell index the guide has.
 fn cell(guide: &LightGuide, cell: u32) -> Result<LightCell, Failure> {
-    if (cell as usize) < guide.cell_count() {
-        Ok(LightCell(cell))
-    } else {
-        Err(Failure::new(
-            LodestarStatus::InvalidArgument,
-            format!("`cell` = {cell} is not a cell of this guide (it has {})", guide.cell_count()),
-        ))
-    }
+    index_below(cell, guide.cell_count(), "cell", "cell").map(LightCell)
 }
 
 /// A light index the guide has.
 fn light(guide: &LightGuide, light: u32) -> Result<u32, Failure> {
-    if (light as usize) < guide.light_count() {
-        Ok(light)
-    } else {
-        Err(Failure::new(
-            LodestarStatus::InvalidArgument,
-            format!("`light` = {light} is not a light of this guide (it has {})", guide.light_count()),
-        ))
-    }
+    index_below(light, guide.light_count(), "light", "light")
 }
 
 /// Creates a light guide over the box `low`..`high` (scene units) for `light_count`

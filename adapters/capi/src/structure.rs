@@ -11,6 +11,20 @@ use crate::arguments::unit;
 use crate::status::{Failure, LodestarStatus};
 use crate::types::{LodestarRegion, LodestarVec3, LODESTAR_NO_REGION};
 
+/// A region index checked below `count`; `LODESTAR_NO_REGION` and stale indices are
+/// `INVALID_REGION` saying which.
+fn region_index(index: u32, count: usize) -> Result<u32, Failure> {
+    if (index as usize) < count {
+        return Ok(index);
+    }
+    let why = if index == LODESTAR_NO_REGION {
+        "LODESTAR_NO_REGION (locate found none: sample the BSDF alone)".to_string()
+    } else {
+        format!("past this guide's {count} regions")
+    };
+    Err(Failure::new(LodestarStatus::InvalidRegion, format!("`region.index` = {index} is {why}")))
+}
+
 /// The structures a handle can hold.
 pub(crate) enum GuideStructure {
     Hemisphere(HemisphereGrid),
@@ -47,18 +61,7 @@ pub(crate) trait CRegions: Guide {
 
     /// A caller's region, checked against this guide.
     fn region(&self, region: LodestarRegion) -> Result<Self::Region, Failure> {
-        let count = self.region_count();
-        if region.index as usize >= count {
-            let why = if region.index == LODESTAR_NO_REGION {
-                "LODESTAR_NO_REGION (locate found none: sample the BSDF alone)".to_string()
-            } else {
-                format!("past this guide's {count} regions")
-            };
-            return Err(Failure::new(
-                LodestarStatus::InvalidRegion,
-                format!("`region.index` = {} is {why}", region.index),
-            ));
-        }
+        region_index(region.index, self.region_count())?;
         let normal = Vec3::from(region.normal);
         let normal = normal.is_finite().then(|| unit(normal)).flatten().ok_or_else(|| {
             Failure::new(
@@ -89,16 +92,7 @@ impl CRegions for HemisphereGrid {
 
     fn region(&self, region: LodestarRegion) -> Result<ProbeId, Failure> {
         // The normal is not used: callers of the 0.1 ABI never filled it in.
-        let count = self.probe_count();
-        if (region.index as usize) < count {
-            return Ok(ProbeId(region.index));
-        }
-        let why = if region.index == LODESTAR_NO_REGION {
-            "LODESTAR_NO_REGION (locate found none: sample the BSDF alone)".to_string()
-        } else {
-            format!("past this guide's {count} regions")
-        };
-        Err(Failure::new(LodestarStatus::InvalidRegion, format!("`region.index` = {} is {why}", region.index)))
+        region_index(region.index, self.probe_count()).map(ProbeId)
     }
 }
 
