@@ -336,6 +336,11 @@ fuzz_target!(|data: &[u8]| {
                         let mut loaded = null_mut();
                         if ok(lodestar_guide_load(buffer.as_ptr(), buffer.len(), &mut loaded)) {
                             assert!(ok(lodestar_guide_validate(loaded)));
+                            // The copy, edited or not, takes in the guide (or says why not)
+                            // and stays valid.
+                            if ok(lodestar_guide_merge(loaded, guide)) {
+                                assert!(ok(lodestar_guide_validate(loaded)));
+                            }
                             assert!(ok(lodestar_guide_release(loaded)));
                         }
                     } else {

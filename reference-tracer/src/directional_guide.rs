@@ -157,21 +157,28 @@ impl DirectionalGuide {
         })
     }
 
-    /// Adds what `other` learned (guiding-core's `HemisphereGrid::merge`: exact for the
-    /// simple average). Both must be hemisphere grids built over the same scene with the
-    /// same settings; the other structures cannot be merged yet and are refused by name.
+    /// Adds what `other` learned: both must hold the same structure built over the same
+    /// scene with the same settings. Hemisphere grids merge exactly under the simple
+    /// average (guiding-core's `HemisphereGrid::merge`); volumes and trees merge into the
+    /// union of their subdivisions (`IrradianceVolume::merge`,
+    /// `SpatialDirectionalTree::merge`: exact where their shapes agree, approximate where
+    /// they differ); mixtures are refused by name.
     pub fn merge(&mut self, other: &DirectionalGuide) -> Result<(), String> {
+        let name = self.structure().name();
+        let failed = |e: guiding_core::Error| format!("merging {name} guides: {e}");
         match (self, other) {
             (DirectionalGuide::Hemisphere(grid), DirectionalGuide::Hemisphere(other)) => {
-                grid.merge(other).map_err(|e| format!("merging hemisphere grids: {e}"))
+                grid.merge(other).map_err(failed)
             }
+            (DirectionalGuide::Volume(volume), DirectionalGuide::Volume(other)) => volume.merge(other).map_err(failed),
+            (DirectionalGuide::Tree(tree), DirectionalGuide::Tree(other)) => tree.merge(other).map_err(failed),
             (this, other) if this.structure() != other.structure() => Err(format!(
                 "cannot merge a {} guide into a {} guide",
                 other.structure().name(),
                 this.structure().name()
             )),
             (this, _) => {
-                Err(format!("merging is built for hemisphere grids only, not {} guides", this.structure().name()))
+                Err(format!("{} guides do not merge: a mixture's fit has no exact sum", this.structure().name()))
             }
         }
     }

@@ -773,11 +773,15 @@ enum LodestarStatus lodestar_guide_estimate_integral_lambertian(const struct Lod
 // `guide` must be NULL or a live handle no other thread is using.
 enum LodestarStatus lodestar_guide_rebuild(struct LodestarGuide *guide);
 
-// Adds what `other` learned to `guide` and rebuilds it. Hemisphere grids over the same
-// mesh with the same config merge exactly under simple averaging (a weighted mean
-// otherwise); other structures, or grids of another scene or config, are
-// `LODESTAR_STATUS_INVALID_ARGUMENT` naming why, and nothing changes. Needs `guide` to
-// itself; `other` is only read.
+// Adds what `other` learned to `guide`, whose sampling reflects both afterwards. Both
+// must hold the same structure built over the same scene (mesh or bounds) with the same
+// config. Hemisphere grids merge exactly under simple averaging (a weighted mean
+// otherwise); irradiance volumes and trees merge into the union of their subdivisions,
+// each cell the mean of both weighted by their updates (exact where the two shapes
+// agree, an approximation where they differ; a tree must be rebuilt since its last
+// updates, and its regions located again). A mixture's fit has no sum and is refused.
+// Any refusal is `LODESTAR_STATUS_INVALID_ARGUMENT` naming why, and nothing changes.
+// Needs `guide` to itself; `other` is only read.
 //
 // # Safety
 // `guide` must be NULL or a live handle no other call is using; `other` NULL or a live

@@ -393,11 +393,15 @@ pub unsafe extern "C" fn lodestar_guide_rebuild(guide: *mut LodestarGuide) -> Lo
     })
 }
 
-/// Adds what `other` learned to `guide` and rebuilds it. Hemisphere grids over the same
-/// mesh with the same config merge exactly under simple averaging (a weighted mean
-/// otherwise); other structures, or grids of another scene or config, are
-/// `LODESTAR_STATUS_INVALID_ARGUMENT` naming why, and nothing changes. Needs `guide` to
-/// itself; `other` is only read.
+/// Adds what `other` learned to `guide`, whose sampling reflects both afterwards. Both
+/// must hold the same structure built over the same scene (mesh or bounds) with the same
+/// config. Hemisphere grids merge exactly under simple averaging (a weighted mean
+/// otherwise); irradiance volumes and trees merge into the union of their subdivisions,
+/// each cell the mean of both weighted by their updates (exact where the two shapes
+/// agree, an approximation where they differ; a tree must be rebuilt since its last
+/// updates, and its regions located again). A mixture's fit has no sum and is refused.
+/// Any refusal is `LODESTAR_STATUS_INVALID_ARGUMENT` naming why, and nothing changes.
+/// Needs `guide` to itself; `other` is only read.
 ///
 /// # Safety
 /// `guide` must be NULL or a live handle no other call is using; `other` NULL or a live
@@ -414,11 +418,19 @@ pub unsafe extern "C" fn lodestar_guide_merge(
             (GuideStructure::Hemisphere(grid), GuideStructure::Hemisphere(theirs)) => {
                 grid.merge(theirs).map_err(|e| Failure::from_core(&e, "merging"))
             }
+            (GuideStructure::Volume(volume), GuideStructure::Volume(theirs)) => {
+                volume.merge(theirs).map_err(|e| Failure::from_core(&e, "merging"))
+            }
+            (GuideStructure::Tree(tree), GuideStructure::Tree(theirs)) => {
+                tree.merge(theirs).map_err(|e| Failure::from_core(&e, "merging"))
+            }
+            (GuideStructure::Mixture(_), GuideStructure::Mixture(_)) => Err(Failure::new(
+                LodestarStatus::InvalidArgument,
+                "mixtures do not merge: a mixture's fit has no exact sum".to_string(),
+            )),
             _ => Err(Failure::new(
                 LodestarStatus::InvalidArgument,
-                "only two hemisphere grids merge: the volume's and the tree's shapes depend on what each learned, \
-                 and a mixture's fit has no exact sum"
-                    .to_string(),
+                "the two guides hold different structures (lodestar_guide_structure says which)".to_string(),
             )),
         }
     })

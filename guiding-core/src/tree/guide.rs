@@ -330,7 +330,7 @@ impl SpatialDirectionalTree {
 }
 
 /// Bytes of a tree with these node and leaf counts.
-fn bytes_for(spatial_nodes: usize, leaves: usize, quad_nodes: usize) -> usize {
+pub(crate) fn bytes_for(spatial_nodes: usize, leaves: usize, quad_nodes: usize) -> usize {
     core::mem::size_of::<SpatialDirectionalTree>()
         + spatial_nodes * SPATIAL_NODE_BYTES
         + leaves * LEAF_BYTES

@@ -12,6 +12,7 @@
 mod axis;
 mod distribution;
 mod guide;
+mod merge;
 mod quadtree;
 mod serialize;
 mod settings;

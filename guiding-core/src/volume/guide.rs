@@ -64,30 +64,30 @@ pub struct VolumeRegion {
 /// assert!(guide.pdf(region, Vec3::new(0.9, 0.43, 0.0).normalize()) > 5.0 * guide.pdf(region, Vec3::Y));
 /// ```
 pub struct IrradianceVolume {
-    settings: IrradianceVolumeSettings,
-    low: Vec3,
-    high: Vec3,
-    grid: CellGrid,
+    pub(crate) settings: IrradianceVolumeSettings,
+    pub(crate) low: Vec3,
+    pub(crate) high: Vec3,
+    pub(crate) grid: CellGrid,
     /// The tree: the grid's cells first, then every split's eight children in a row.
-    nodes: Vec<u32>,
-    q: Vec<AtomicU32>,
-    patch_visits: Vec<AtomicU32>,
+    pub(crate) nodes: Vec<u32>,
+    pub(crate) q: Vec<AtomicU32>,
+    pub(crate) patch_visits: Vec<AtomicU32>,
     /// Per patch Σ of the importance weights of its updates (f32 bits), the simple
     /// average's denominator (see [`importance_weight`]).
-    patch_weights: Vec<AtomicU32>,
-    leaf_visits: Vec<AtomicU32>,
+    pub(crate) patch_weights: Vec<AtomicU32>,
+    pub(crate) leaf_visits: Vec<AtomicU32>,
     /// Leaf visits when its CDF was last built (unchanged leaves are not rebuilt).
-    visits_at_build: Vec<u32>,
-    cdf: Vec<f32>,
+    pub(crate) visits_at_build: Vec<u32>,
+    pub(crate) cdf: Vec<f32>,
     /// Per leaf, its Q at the last CDF build projected on order-2 spherical harmonics:
     /// the Lambertian integral estimate for any normal in nine terms.
-    irradiance: Vec<[f32; 9]>,
-    patch_centers: Vec<Vec3>,
+    pub(crate) irradiance: Vec<[f32; 9]>,
+    pub(crate) patch_centers: Vec<Vec3>,
     /// ∫ Y_lm dω over each patch, shared by every leaf's projection.
-    patch_basis: Vec<[f32; 9]>,
-    epoch: u32,
-    rejected_non_finite: AtomicUsize,
-    rejected_negative: AtomicUsize,
+    pub(crate) patch_basis: Vec<[f32; 9]>,
+    pub(crate) epoch: u32,
+    pub(crate) rejected_non_finite: AtomicUsize,
+    pub(crate) rejected_negative: AtomicUsize,
 }
 
 /// The sampling distribution of one region: its leaf's CDF over the sphere, folded onto
@@ -343,7 +343,7 @@ impl IrradianceVolume {
         Some(entry & !LEAF)
     }
 
-    fn build_cdfs(&mut self, all: bool) {
+    pub(crate) fn build_cdfs(&mut self, all: bool) {
         let patches = self.patch_count();
         let mix = self.settings.uniform_mix;
         let rows = self.cdf.chunks_exact_mut(patches).zip(self.q.chunks_exact(patches)).zip(&mut self.irradiance);
@@ -358,7 +358,7 @@ impl IrradianceVolume {
     }
 
     /// The bytes one split adds: seven new leaves and eight nodes.
-    fn split_bytes(&self) -> usize {
+    pub(crate) fn split_bytes(&self) -> usize {
         7 * self.settings.bytes_per_leaf() + 8 * BYTES_PER_NODE
     }
 
@@ -417,36 +417,43 @@ impl IrradianceVolume {
         self.visits_at_build.reserve_exact(new_leaves);
         self.irradiance.reserve_exact(new_leaves);
         for &(_, node) in &busy {
-            let parent = self.nodes[node as usize] & !LEAF;
-            let first_child = self.nodes.len() as u32;
-            self.nodes[node as usize] = first_child;
-            // The first child keeps the parent's table; seven copies follow.
-            self.nodes.push(LEAF | parent);
-            let share = |v: u32| v / 8;
-            let row = parent as usize * patches..(parent as usize + 1) * patches;
-            for slot in &self.patch_visits[row.clone()] {
-                slot.store(share(slot.load(Ordering::Relaxed)), Ordering::Relaxed);
-            }
-            for slot in &self.patch_weights[row.clone()] {
-                slot.store((atomic_f32::load(slot) / 8.0).to_bits(), Ordering::Relaxed);
-            }
-            let leaf_visits = share(self.leaf_visits[parent as usize].load(Ordering::Relaxed));
-            self.leaf_visits[parent as usize].store(leaf_visits, Ordering::Relaxed);
-            for _ in 0..7 {
-                let leaf = self.leaf_visits.len() as u32;
-                self.nodes.push(LEAF | leaf);
-                for k in row.clone() {
-                    self.q.push(AtomicU32::new(self.q[k].load(Ordering::Relaxed)));
-                    self.patch_visits.push(AtomicU32::new(self.patch_visits[k].load(Ordering::Relaxed)));
-                    self.patch_weights.push(atomic_f32::new(atomic_f32::load(&self.patch_weights[k])));
-                    self.cdf.push(self.cdf[k]);
-                }
-                self.leaf_visits.push(AtomicU32::new(leaf_visits));
-                self.visits_at_build.push(u32::MAX);
-                self.irradiance.push(self.irradiance[parent as usize]);
-            }
-            self.visits_at_build[parent as usize] = u32::MAX;
+            self.split_leaf_at(node);
         }
+    }
+
+    /// Splits the leaf at tree entry `node` into eight: the first child keeps the
+    /// leaf's table, seven copies follow, and each holds an eighth of its visits and
+    /// weights. The caller checks the budget.
+    pub(crate) fn split_leaf_at(&mut self, node: u32) {
+        let patches = self.patch_count();
+        let parent = self.nodes[node as usize] & !LEAF;
+        let first_child = self.nodes.len() as u32;
+        self.nodes[node as usize] = first_child;
+        self.nodes.push(LEAF | parent);
+        let share = |v: u32| v / 8;
+        let row = parent as usize * patches..(parent as usize + 1) * patches;
+        for slot in &self.patch_visits[row.clone()] {
+            slot.store(share(slot.load(Ordering::Relaxed)), Ordering::Relaxed);
+        }
+        for slot in &self.patch_weights[row.clone()] {
+            slot.store((atomic_f32::load(slot) / 8.0).to_bits(), Ordering::Relaxed);
+        }
+        let leaf_visits = share(self.leaf_visits[parent as usize].load(Ordering::Relaxed));
+        self.leaf_visits[parent as usize].store(leaf_visits, Ordering::Relaxed);
+        for _ in 0..7 {
+            let leaf = self.leaf_visits.len() as u32;
+            self.nodes.push(LEAF | leaf);
+            for k in row.clone() {
+                self.q.push(AtomicU32::new(self.q[k].load(Ordering::Relaxed)));
+                self.patch_visits.push(AtomicU32::new(self.patch_visits[k].load(Ordering::Relaxed)));
+                self.patch_weights.push(atomic_f32::new(atomic_f32::load(&self.patch_weights[k])));
+                self.cdf.push(self.cdf[k]);
+            }
+            self.leaf_visits.push(AtomicU32::new(leaf_visits));
+            self.visits_at_build.push(u32::MAX);
+            self.irradiance.push(self.irradiance[parent as usize]);
+        }
+        self.visits_at_build[parent as usize] = u32::MAX;
     }
 }
 

@@ -4,6 +4,7 @@
 
 mod guide;
 mod irradiance_sh;
+mod merge;
 mod serialize;
 mod settings;
 mod sphere_layout;

@@ -5,7 +5,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use crate::scene_intersector::{IntersectorChoice, SceneIntersector};
-use guiding_core::environment::EnvironmentTiles;
+use guiding_core::environment::{EnvironmentTiles, SunDisk};
 use guiding_core::{
     EnvTileGuide, EnvTileGuideSettings, FocalGuide, FocalGuideSettings, HemisphereGrid, LightGuide, LightGuideSettings,
     NextEventGate, NextEventGateSettings, StrategyShares,
@@ -294,6 +294,17 @@ impl LightRequest {
     }
 }
 
+/// The environment's tiles (`tiles` across × down its lat-long map) and sun disk, as an
+/// environment-tile guide samples them (and needs them to be read back).
+pub fn environment_tiles(
+    environment: &crate::environment::Environment,
+    tiles: [u32; 2],
+) -> Result<(EnvironmentTiles, Option<SunDisk>), String> {
+    let (width, height, luminance) = environment.sky.luminance_grid();
+    let map = EnvironmentTiles::new(width, height, &luminance, tiles).map_err(|e| format!("environment tiles: {e}"))?;
+    Ok((map, environment.sun.map(|sun| sun.disk)))
+}
+
 /// [`prepare`], with light and environment sampling planned from the scene: a light
 /// guide over the scene's bounds is built when the plan selects lights as learned, an
 /// environment-tile guide when it samples the environment by tiles.
@@ -363,10 +374,7 @@ pub fn prepare_with_lights(
             if plan.environment_sampling == EnvironmentSampling::Tiles && lights.next_event_estimation =>
         {
             let settings = lights.environment_settings;
-            let (width, height, luminance) = environment.sky.luminance_grid();
-            let tiles = EnvironmentTiles::new(width, height, &luminance, settings.tiles)
-                .map_err(|e| format!("environment tiles: {e}"))?;
-            let sun = environment.sun.map(|sun| sun.disk);
+            let (tiles, sun) = environment_tiles(environment, settings.tiles)?;
             let environment_guide =
                 EnvTileGuide::new(low, high, tiles, sun, settings).map_err(|e| format!("environment guide: {e}"))?;
             let [x, y, z] = environment_guide.resolution();

@@ -1,12 +1,13 @@
 //! `lodestar render`: one scene, one method, progressive, with its outputs.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use clap::Args;
+use guiding_core::{EnvTileGuide, LightGuide};
 
 use super::options::{parse_method, TraceOptions};
 use super::outputs::{sibling, statistics_json, write_outputs};
-use super::prepare::prepare_with_lights;
+use super::prepare::{prepare_with_lights, Prepared};
 use super::progressive::{describe_shares, render_prepared, thread_pool};
 use crate::directional_guide::DirectionalGuide;
 use crate::integrator::Method;
@@ -47,6 +48,20 @@ pub(super) struct RenderArgs {
     /// image; `merge-guides` combines several).
     #[arg(long)]
     pub(super) save_guide: Option<PathBuf>,
+    /// Start learned light selection from this saved light guide (`--save-light-guide`
+    /// of a render of the same scene and settings) instead of an empty one.
+    #[arg(long)]
+    pub(super) load_light_guide: Option<PathBuf>,
+    /// Save the light guide of learned light selection by the end of the render.
+    #[arg(long)]
+    pub(super) save_light_guide: Option<PathBuf>,
+    /// Start environment sampling by tiles from this saved environment guide
+    /// (`--save-env-guide` of a render of the same scene and settings).
+    #[arg(long)]
+    pub(super) load_env_guide: Option<PathBuf>,
+    /// Save the environment-tile guide by the end of the render.
+    #[arg(long)]
+    pub(super) save_env_guide: Option<PathBuf>,
 }
 
 pub(super) fn run_render(args: &RenderArgs) -> Result<(), String> {
@@ -76,6 +91,7 @@ pub(super) fn run_render(args: &RenderArgs) -> Result<(), String> {
             .map_err(|e| format!("--load-guide {}: {e}", path.display()))?;
         prepared.guide = Some(loaded);
     }
+    load_sampling_guides(args, &mut prepared)?;
     prepared.device = options.device;
     prepared.focal_settings = options.focal_settings(args.integrator)?;
     prepared.guide_share_cost = options.guide_share_cost;
@@ -147,6 +163,60 @@ pub(super) fn run_render(args: &RenderArgs) -> Result<(), String> {
         std::fs::write(path, guide.to_bytes()).map_err(|e| format!("--save-guide {}: {e}", path.display()))?;
         eprintln!("saved the guide to {}", path.display());
     }
+    save_sampling_guides(args, &prepared)?;
     eprintln!("wrote {}", args.out.display());
+    Ok(())
+}
+
+/// Why a render has no light guide to load into or save.
+const NO_LIGHT_GUIDE: &str = "this render has no learned light selection (see the plan; --light-selection learned)";
+/// Why a render has no environment guide to load into or save.
+const NO_ENV_GUIDE: &str = "this render samples no environment by tiles (see the plan; --env-sampling tiles)";
+
+/// `--load-light-guide` and `--load-env-guide`: each file is read and merged into the
+/// guide the plan built, which is still empty: the merge is exact, and checks that the
+/// file learned the same scene with the same settings.
+fn load_sampling_guides(args: &RenderArgs, prepared: &mut Prepared) -> Result<(), String> {
+    let read = |flag: &str, path: &Path| std::fs::read(path).map_err(|e| format!("{flag} {}: {e}", path.display()));
+    if let Some(path) = &args.load_light_guide {
+        let flag = "--load-light-guide";
+        let Some(built) = prepared.light_guide.as_mut() else {
+            return Err(format!("{flag} {}: {NO_LIGHT_GUIDE}", path.display()));
+        };
+        let loaded =
+            LightGuide::from_bytes(&read(flag, path)?).map_err(|e| format!("{flag} {}: {e}", path.display()))?;
+        built.merge(&loaded).map_err(|e| format!("{flag} {}: {e}", path.display()))?;
+    }
+    if let Some(path) = &args.load_env_guide {
+        let flag = "--load-env-guide";
+        let Some(built) = prepared.environment_guide.as_mut() else {
+            return Err(format!("{flag} {}: {NO_ENV_GUIDE}", path.display()));
+        };
+        let bytes = read(flag, path)?;
+        let loaded = EnvTileGuide::from_bytes(&bytes, built.tiles().clone(), built.sun().copied())
+            .map_err(|e| format!("{flag} {}: {e}", path.display()))?;
+        built.merge(&loaded).map_err(|e| format!("{flag} {}: {e}", path.display()))?;
+    }
+    Ok(())
+}
+
+/// `--save-light-guide` and `--save-env-guide`.
+fn save_sampling_guides(args: &RenderArgs, prepared: &Prepared) -> Result<(), String> {
+    let write = |flag: &str, path: &Path, bytes: Option<Vec<u8>>, missing: &str| {
+        let bytes = bytes.ok_or_else(|| format!("{flag} {}: {missing}", path.display()))?;
+        std::fs::write(path, bytes).map_err(|e| format!("{flag} {}: {e}", path.display()))?;
+        eprintln!(
+            "saved the {} to {}",
+            if flag.contains("light") { "light guide" } else { "environment guide" },
+            path.display()
+        );
+        Ok::<(), String>(())
+    };
+    if let Some(path) = &args.save_light_guide {
+        write("--save-light-guide", path, prepared.light_guide.as_ref().map(LightGuide::to_bytes), NO_LIGHT_GUIDE)?;
+    }
+    if let Some(path) = &args.save_env_guide {
+        write("--save-env-guide", path, prepared.environment_guide.as_ref().map(EnvTileGuide::to_bytes), NO_ENV_GUIDE)?;
+    }
     Ok(())
 }
