@@ -4,6 +4,7 @@
 #   PREFIX/include/lodestar.h, lodestar.hpp        (the C API and its C++ wrapper)
 #   PREFIX/lib/pkgconfig/lodestar.pc               (pkg-config --cflags --libs lodestar)
 #   PREFIX/lib/cmake/lodestar/lodestarConfig.cmake (find_package(lodestar) → lodestar::lodestar)
+#   PREFIX/lib/cmake/lodestar/lodestarConfigVersion.cmake (find_package(lodestar 0.1))
 # Usage: scripts/install-capi.sh PREFIX   (CARGO_TARGET_DIR is honoured). Safe to rerun.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -45,6 +46,32 @@ if(NOT TARGET lodestar::lodestar)
 endif()
 set(lodestar_VERSION "$version")
 unset(_lodestar_prefix)
+EOF
+
+cat > "$prefix/lib/cmake/lodestar/lodestarConfigVersion.cmake" <<EOF
+# find_package(lodestar X.Y): compatible within one minor version while the major is 0
+# (within one major version after), and never with a request newer than this one.
+set(PACKAGE_VERSION "$version")
+string(REGEX MATCH "^[0-9]+\\\\.[0-9]+" _lodestar_have "\${PACKAGE_VERSION}")
+string(REGEX MATCH "^[0-9]+\\\\.[0-9]+" _lodestar_want "\${PACKAGE_FIND_VERSION}")
+string(REGEX MATCH "^[0-9]+" _lodestar_major "\${PACKAGE_VERSION}")
+string(REGEX MATCH "^[0-9]+" _lodestar_want_major "\${PACKAGE_FIND_VERSION}")
+if(PACKAGE_FIND_VERSION VERSION_GREATER PACKAGE_VERSION)
+  set(PACKAGE_VERSION_COMPATIBLE FALSE)
+elseif(NOT _lodestar_major STREQUAL _lodestar_want_major)
+  set(PACKAGE_VERSION_COMPATIBLE FALSE)
+elseif(_lodestar_major STREQUAL "0" AND NOT _lodestar_want STREQUAL "" AND NOT _lodestar_have STREQUAL _lodestar_want)
+  set(PACKAGE_VERSION_COMPATIBLE FALSE)
+else()
+  set(PACKAGE_VERSION_COMPATIBLE TRUE)
+  if(PACKAGE_FIND_VERSION STREQUAL PACKAGE_VERSION)
+    set(PACKAGE_VERSION_EXACT TRUE)
+  endif()
+endif()
+unset(_lodestar_have)
+unset(_lodestar_want)
+unset(_lodestar_major)
+unset(_lodestar_want_major)
 EOF
 
 echo "install-capi: liblodestar $version in $prefix (pkg-config: PKG_CONFIG_PATH=$prefix/lib/pkgconfig)"

@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Installs what building and testing Lodestar needs on a fresh Debian machine, and
 # nothing that is already there: a stable Rust toolchain with rustfmt and clippy, C and
-# C++ compilers (build scripts; the C API's C test and C++ example) and valgrind (which
-# runs those clean). Safe to run any number of times.
+# C++ compilers (build scripts; the C API's C test and C++ example), pkg-config and CMake
+# (which find the installed C library) and valgrind (which runs those clean). Safe to run any number of times.
 set -euo pipefail
 
 as_root() {
@@ -14,6 +14,7 @@ command -v cc >/dev/null 2>&1 && command -v g++ >/dev/null 2>&1 || missing_packa
 command -v valgrind >/dev/null 2>&1 || missing_packages+=(valgrind)
 command -v curl >/dev/null 2>&1 || missing_packages+=(curl ca-certificates)
 command -v pkg-config >/dev/null 2>&1 || missing_packages+=(pkg-config)
+command -v cmake >/dev/null 2>&1 || missing_packages+=(cmake)
 if [ ${#missing_packages[@]} -gt 0 ]; then
     echo "setup: installing ${missing_packages[*]}"
     as_root apt-get update -qq

@@ -164,3 +164,23 @@ fn cpp_example_renders_learns_reloads_and_runs_clean_under_valgrind() {
         assert!(out.trim_end().ends_with("means agree"), "{out}");
     }
 }
+
+#[test]
+fn cmake_finds_the_installed_library_and_builds_the_example() {
+    let build = Path::new(env!("CARGO_TARGET_TMPDIR")).join("cmake-example");
+    let _ = std::fs::remove_dir_all(&build);
+    let cmake = |args: &[&std::ffi::OsStr]| {
+        let output = Command::new("cmake")
+            .args(args)
+            .output()
+            .unwrap_or_else(|e| panic!("cannot run cmake ({e}): run scripts/setup.sh to install it"));
+        let text = format!("{}{}", String::from_utf8_lossy(&output.stdout), String::from_utf8_lossy(&output.stderr));
+        assert!(output.status.success(), "cmake {args:?} failed:\n{text}");
+    };
+    let prefix = format!("-DCMAKE_PREFIX_PATH={}", install_prefix().display());
+    let source = crate_dir().join("examples/cpp");
+    cmake(&["-S".as_ref(), source.as_os_str(), "-B".as_ref(), build.as_os_str(), prefix.as_ref()]);
+    cmake(&["--build".as_ref(), build.as_os_str()]);
+    let out = run(&build.join("minimal_renderer"), &["4"], false);
+    assert!(out.trim_end().ends_with("means agree"), "{out}");
+}
