@@ -272,6 +272,35 @@ fn check_round_trip<G: GuideAccess>(make: &impl Fn(UpdateRule) -> G) {
     }
 }
 
+/// Merging: a fresh guide adds nothing to any table case, and a case merged with its own
+/// saved copy stays valid and normalised, with twice the updates.
+fn check_merge<G: GuideAccess>(make: &impl Fn(UpdateRule) -> G) {
+    let mut rng = Pcg32::new(5, 5);
+    for (name, guide) in table_cases(make) {
+        let bytes = guide.to_bytes();
+        let mut with_fresh = G::from_bytes(&bytes).unwrap_or_else(|e| panic!("{name}: {e}"));
+        with_fresh.merge(&make(UpdateRule::default())).unwrap_or_else(|e| panic!("{name}: {e}"));
+        // Regions are located anew: a merge may renumber them.
+        for ((region, _), (merged, _)) in guide.test_regions().into_iter().zip(with_fresh.test_regions()) {
+            for _ in 0..50 {
+                let d = guide.sample(region, rng.next_vec2()).direction;
+                let (before, after) = (guide.pdf(region, d), with_fresh.pdf(merged, d));
+                assert!((before - after).abs() <= 1e-3 * before.max(1e-3), "{name}: pdf {before} became {after}");
+            }
+        }
+        let mut doubled = G::from_bytes(&bytes).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let copy = G::from_bytes(&bytes).unwrap_or_else(|e| panic!("{name}: {e}"));
+        doubled.merge(&copy).unwrap_or_else(|e| panic!("{name}: {e}"));
+        doubled.validate().unwrap_or_else(|e| panic!("{name}: merged with itself: {e}"));
+        assert_eq!(doubled.stats().accepted_updates, 2 * guide.stats().accepted_updates, "{name}");
+        for (region, normal) in doubled.test_regions() {
+            let distribution = doubled.distribution(region);
+            let total = pdf_integral(&|d| distribution.pdf(d), normal, 64, doubled.integration_depth());
+            assert!((total - 1.0).abs() < 1e-3, "{name} merged with itself: pdf integrates to {total}");
+        }
+    }
+}
+
 fn check_damaged_buffer<G: GuideAccess>(
     bytes: &[u8],
     cut: usize,
@@ -334,6 +363,11 @@ macro_rules! guide_properties {
             #[test]
             fn serialization_round_trips_exactly() {
                 check_round_trip(&make);
+            }
+
+            #[test]
+            fn merging_a_fresh_guide_changes_nothing_and_a_copy_doubles_the_updates() {
+                check_merge(&make);
             }
 
             #[test]

@@ -96,6 +96,15 @@ pub trait Guide: Sync + Sized {
     /// Reads [`to_bytes`](Self::to_bytes)' output. Damaged, truncated or foreign buffers
     /// return an error naming the field and offset; nothing panics.
     fn from_bytes(bytes: &[u8]) -> Result<Self, Error>;
+
+    /// Adds what `other` learned (another process or node rendering the same scene,
+    /// typically read back with [`from_bytes`](Self::from_bytes)): both must have been
+    /// built over the same scene with the same settings, else nothing changes and
+    /// [`Error::Incompatible`] names what differs. Exact where the structure's statistics
+    /// are counts and sums (the hemisphere grid under the simple average; the volume and
+    /// the tree where both have one shape), a documented approximation elsewhere (each
+    /// type's own `merge` says which).
+    fn merge(&mut self, other: &Self) -> Result<(), Error>;
 }
 
 /// Sizes and counters of a guide.

@@ -158,11 +158,10 @@ impl DirectionalGuide {
     }
 
     /// Adds what `other` learned: both must hold the same structure built over the same
-    /// scene with the same settings. Hemisphere grids merge exactly under the simple
-    /// average (guiding-core's `HemisphereGrid::merge`); volumes and trees merge into the
-    /// union of their subdivisions (`IrradianceVolume::merge`,
-    /// `SpatialDirectionalTree::merge`: exact where their shapes agree, approximate where
-    /// they differ); mixtures are refused by name.
+    /// scene with the same settings (guiding-core's `Guide::merge`). Hemisphere grids
+    /// merge exactly under the simple average; volumes and trees into the union of their
+    /// subdivisions (exact where their shapes agree); mixtures by pairing lobes
+    /// (approximate).
     pub fn merge(&mut self, other: &DirectionalGuide) -> Result<(), String> {
         let name = self.structure().name();
         let failed = |e: guiding_core::Error| format!("merging {name} guides: {e}");
@@ -171,15 +170,15 @@ impl DirectionalGuide {
                 grid.merge(other).map_err(failed)
             }
             (DirectionalGuide::Volume(volume), DirectionalGuide::Volume(other)) => volume.merge(other).map_err(failed),
+            (DirectionalGuide::Mixture(mixture), DirectionalGuide::Mixture(other)) => {
+                mixture.merge(other).map_err(failed)
+            }
             (DirectionalGuide::Tree(tree), DirectionalGuide::Tree(other)) => tree.merge(other).map_err(failed),
-            (this, other) if this.structure() != other.structure() => Err(format!(
+            (this, other) => Err(format!(
                 "cannot merge a {} guide into a {} guide",
                 other.structure().name(),
                 this.structure().name()
             )),
-            (this, _) => {
-                Err(format!("{} guides do not merge: a mixture's fit has no exact sum", this.structure().name()))
-            }
         }
     }
 

@@ -778,9 +778,10 @@ enum LodestarStatus lodestar_guide_rebuild(struct LodestarGuide *guide);
 // config. Hemisphere grids merge exactly under simple averaging (a weighted mean
 // otherwise); irradiance volumes and trees merge into the union of their subdivisions,
 // each cell the mean of both weighted by their updates (exact where the two shapes
-// agree, an approximation where they differ; a tree must be rebuilt since its last
-// updates, and its regions located again). A mixture's fit has no sum and is refused.
-// Any refusal is `LODESTAR_STATUS_INVALID_ARGUMENT` naming why, and nothing changes.
+// agree, an approximation where they differ; a tree's regions must be located again);
+// mixtures by pairing their lobes by direction and averaging their statistics (an
+// approximation). A tree or mixture must be rebuilt since its last updates. Any refusal
+// is `LODESTAR_STATUS_INVALID_ARGUMENT` naming why, and nothing changes.
 // Needs `guide` to itself; `other` is only read.
 //
 // # Safety

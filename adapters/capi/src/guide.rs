@@ -398,9 +398,10 @@ pub unsafe extern "C" fn lodestar_guide_rebuild(guide: *mut LodestarGuide) -> Lo
 /// config. Hemisphere grids merge exactly under simple averaging (a weighted mean
 /// otherwise); irradiance volumes and trees merge into the union of their subdivisions,
 /// each cell the mean of both weighted by their updates (exact where the two shapes
-/// agree, an approximation where they differ; a tree must be rebuilt since its last
-/// updates, and its regions located again). A mixture's fit has no sum and is refused.
-/// Any refusal is `LODESTAR_STATUS_INVALID_ARGUMENT` naming why, and nothing changes.
+/// agree, an approximation where they differ; a tree's regions must be located again);
+/// mixtures by pairing their lobes by direction and averaging their statistics (an
+/// approximation). A tree or mixture must be rebuilt since its last updates. Any refusal
+/// is `LODESTAR_STATUS_INVALID_ARGUMENT` naming why, and nothing changes.
 /// Needs `guide` to itself; `other` is only read.
 ///
 /// # Safety
@@ -415,25 +416,21 @@ pub unsafe extern "C" fn lodestar_guide_merge(
         // SAFETY: the caller's contract.
         let (guide, other) = unsafe { merge_pair(guide, other) }?;
         match (&mut guide.structure, &other.structure) {
-            (GuideStructure::Hemisphere(grid), GuideStructure::Hemisphere(theirs)) => {
-                grid.merge(theirs).map_err(|e| Failure::from_core(&e, "merging"))
-            }
-            (GuideStructure::Volume(volume), GuideStructure::Volume(theirs)) => {
-                volume.merge(theirs).map_err(|e| Failure::from_core(&e, "merging"))
-            }
-            (GuideStructure::Tree(tree), GuideStructure::Tree(theirs)) => {
-                tree.merge(theirs).map_err(|e| Failure::from_core(&e, "merging"))
-            }
-            (GuideStructure::Mixture(_), GuideStructure::Mixture(_)) => Err(Failure::new(
-                LodestarStatus::InvalidArgument,
-                "mixtures do not merge: a mixture's fit has no exact sum".to_string(),
-            )),
+            (GuideStructure::Hemisphere(grid), GuideStructure::Hemisphere(theirs)) => merge(grid, theirs),
+            (GuideStructure::Volume(volume), GuideStructure::Volume(theirs)) => merge(volume, theirs),
+            (GuideStructure::Mixture(mixture), GuideStructure::Mixture(theirs)) => merge(mixture, theirs),
+            (GuideStructure::Tree(tree), GuideStructure::Tree(theirs)) => merge(tree, theirs),
             _ => Err(Failure::new(
                 LodestarStatus::InvalidArgument,
                 "the two guides hold different structures (lodestar_guide_structure says which)".to_string(),
             )),
         }
     })
+}
+
+/// `guide.merge(other)` through guiding-core's `Guide::merge`, its refusal as a status.
+fn merge<G: Guide>(guide: &mut G, other: &G) -> Result<(), Failure> {
+    guide.merge(other).map_err(|e| Failure::from_core(&e, "merging"))
 }
 
 /// Forgets everything the guide learned: it samples and estimates as when it was

@@ -718,6 +718,10 @@ impl Guide for HemisphereGrid {
     fn from_bytes(bytes: &[u8]) -> Result<Self, Error> {
         super::serialize::decode(bytes)
     }
+
+    fn merge(&mut self, other: &Self) -> Result<(), Error> {
+        HemisphereGrid::merge(self, other)
+    }
 }
 
 #[cfg(test)]

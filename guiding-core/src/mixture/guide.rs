@@ -65,18 +65,18 @@ pub struct MixtureRegion {
 /// assert!(guide.pdf(region, Vec3::X) > 10.0 * guide.pdf(region, -Vec3::X));
 /// ```
 pub struct GaussianMixture {
-    settings: GaussianMixtureSettings,
-    low: Vec3,
-    high: Vec3,
-    grid: CellGrid,
+    pub(crate) settings: GaussianMixtureSettings,
+    pub(crate) low: Vec3,
+    pub(crate) high: Vec3,
+    pub(crate) grid: CellGrid,
     /// Each region's mixture: the sampling snapshot plus its running statistics.
-    mixtures: Vec<VmfMixture>,
+    pub(crate) mixtures: Vec<VmfMixture>,
     /// Per region [`batch_stride`] words: sample count (u32), then per lobe Σ r·v and
     /// Σ r·v·ω (f32 bits).
-    batch: Vec<AtomicU32>,
-    epoch: u32,
-    rejected_non_finite: AtomicUsize,
-    rejected_negative: AtomicUsize,
+    pub(crate) batch: Vec<AtomicU32>,
+    pub(crate) epoch: u32,
+    pub(crate) rejected_non_finite: AtomicUsize,
+    pub(crate) rejected_negative: AtomicUsize,
 }
 
 /// The sampling distribution of one region: the mixture, with a share spread uniformly,
@@ -252,7 +252,7 @@ impl GaussianMixture {
         guide
     }
 
-    fn batch_row(&self, region: usize) -> &[AtomicU32] {
+    pub(crate) fn batch_row(&self, region: usize) -> &[AtomicU32] {
         let stride = batch_stride(self.settings.lobes);
         &self.batch[region * stride..(region + 1) * stride]
     }
@@ -456,6 +456,10 @@ impl Guide for GaussianMixture {
 
     fn from_bytes(bytes: &[u8]) -> Result<Self, Error> {
         super::serialize::decode(bytes)
+    }
+
+    fn merge(&mut self, other: &Self) -> Result<(), Error> {
+        GaussianMixture::merge(self, other)
     }
 }
 

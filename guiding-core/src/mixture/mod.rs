@@ -5,6 +5,7 @@
 //! grid over the scene.
 
 mod guide;
+mod merge;
 mod serialize;
 mod settings;
 mod vmf;

@@ -157,6 +157,43 @@ impl VmfMixture {
         }
     }
 
+    /// Takes in `other`'s statistics as if its samples had been observed here: each of
+    /// its lobes is paired with the nearest lobe of this mixture by mean direction
+    /// (heaviest first, each lobe once), the paired statistics are averaged by the two
+    /// mixtures' observation counts, and the mixture is refitted. Both must have the same
+    /// number of lobes (else nothing changes and `false` is returned).
+    ///
+    /// An approximation: each mixture weighed its samples by responsibilities under its
+    /// own lobes, so two lobes paired here may have split their samples differently; a
+    /// pair that followed different lights averages into one broader lobe, which keeps
+    /// both directions' density above zero.
+    pub fn merge(&mut self, other: &VmfMixture) -> bool {
+        if self.count != other.count {
+            return false;
+        }
+        let (mine, theirs) = (self.observations as f64, other.observations as f64);
+        if theirs == 0.0 {
+            return true;
+        }
+        let mut order: [usize; MAX_LOBES] = core::array::from_fn(|k| k);
+        order[..other.count].sort_by(|&a, &b| other.weight_statistics[b].total_cmp(&other.weight_statistics[a]));
+        let (mut taken, mut s0, mut s1) = ([false; MAX_LOBES], [0.0f32; MAX_LOBES], [Vec3::ZERO; MAX_LOBES]);
+        for &j in &order[..other.count] {
+            let toward = other.lobes[j].mean();
+            let nearest = (0..self.count)
+                .filter(|&k| !taken[k])
+                .max_by(|&a, &b| self.lobes[a].mean().dot(toward).total_cmp(&self.lobes[b].mean().dot(toward)));
+            let Some(k) = nearest else { break };
+            taken[k] = true;
+            s0[k] = other.weight_statistics[j];
+            s1[k] = other.direction_statistics[j];
+        }
+        self.absorb(&s0, &s1, (theirs / (mine + theirs)) as f32);
+        self.refit();
+        self.observations = self.observations.saturating_add(other.observations);
+        true
+    }
+
     /// The running average of the sample weights (Σ_k S0_k): with weights target/density,
     /// an estimate of ∫ target dω over the sphere (radiance × steradian).
     pub fn total_weight(&self) -> f32 {

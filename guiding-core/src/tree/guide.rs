@@ -524,6 +524,10 @@ impl Guide for SpatialDirectionalTree {
         super::serialize::from_bytes(bytes)
     }
 
+    fn merge(&mut self, other: &Self) -> Result<(), Error> {
+        SpatialDirectionalTree::merge(self, other)
+    }
+
     fn update_rule(&self) -> UpdateRule {
         self.settings.update_rule
     }

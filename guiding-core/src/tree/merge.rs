@@ -92,7 +92,14 @@ impl SpatialDirectionalTree {
         for (index, piece) in pieces.iter().enumerate() {
             let (a, b) = (self.leaves[piece.mine as usize], other.leaves[piece.theirs as usize]);
             let (wa, wb) = (a.weight * piece.mine_share, b.weight * piece.theirs_share);
-            let (ka, kb) = if wa + wb > 0.0 { (wa / (wa + wb), wb / (wa + wb)) } else { (0.5, 0.5) };
+            // Weighted by records; a leaf that learned from none (set by hand, or fresh)
+            // counts only where it holds flux.
+            let (ka, kb) = match (wa + wb > 0.0, a.flux > 0.0, b.flux > 0.0) {
+                (true, _, _) => (wa / (wa + wb), wb / (wa + wb)),
+                (false, true, false) => (1.0, 0.0),
+                (false, false, true) => (0.0, 1.0),
+                (false, _, _) => (0.5, 0.5),
+            };
             // The square is built around the heavier leaf's axis; the other leaf's is
             // turned to it where they differ.
             let axis = if wb > wa { b.axis } else { a.axis };

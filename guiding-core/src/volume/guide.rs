@@ -621,6 +621,10 @@ impl Guide for IrradianceVolume {
     fn from_bytes(bytes: &[u8]) -> Result<Self, Error> {
         super::serialize::decode(bytes)
     }
+
+    fn merge(&mut self, other: &Self) -> Result<(), Error> {
+        IrradianceVolume::merge(self, other)
+    }
 }
 
 #[cfg(test)]

@@ -30,7 +30,7 @@ impl GuideKind {
             "environment" => Ok(GuideKind::Environment),
             _ => GuideStructure::from_name(s)
                 .map(GuideKind::Directional)
-                .map_err(|_| format!("unknown guide `{s}` (hemisphere, volume, tree, lights, environment)")),
+                .map_err(|_| format!("unknown guide `{s}` (hemisphere, volume, mixture, tree, lights, environment)")),
         }
     }
 }
@@ -41,8 +41,8 @@ pub(super) struct MergeGuidesArgs {
     /// `--save-env-guide`), all learned over the same scene with the same settings.
     #[arg(required = true, num_args = 2..)]
     pub(super) guides: Vec<PathBuf>,
-    /// What they hold: a directional guide's structure (hemisphere, volume or tree;
-    /// mixtures do not merge), lights, or environment.
+    /// What they hold: a directional guide's structure (hemisphere, volume, mixture or
+    /// tree), lights, or environment.
     #[arg(long, default_value = "hemisphere", value_parser = GuideKind::from_name)]
     pub(super) guide: GuideKind,
     /// The scene the guides learned: environment guides are read against its

@@ -56,8 +56,8 @@ void exercise(lodestar::Guide& guide, uint32_t structure) {
     OK(lodestar::Guide::load(bytes, loaded));
     lodestar::Guide moved = std::move(loaded);
     TRUTH(!loaded && moved);
-    // Every structure but the mixture merges (a rebuilt guide into its own copy).
-    TRUTH((moved.merge(guide) == LODESTAR_STATUS_OK) == (structure != LODESTAR_STRUCTURE_GAUSSIAN_MIXTURE));
+    // Every structure merges (a rebuilt guide into its own copy).
+    OK(moved.merge(guide));
     OK(moved.structure(found));
     TRUTH(found == structure);
     bytes[bytes.size() / 2] ^= 1;
