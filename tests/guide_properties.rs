@@ -147,6 +147,7 @@ fn check_update_stream<G: GuideAccess>(guide: &G, stream: &[(f32, Vec3)]) -> Res
             UpdateOutcome::RejectedNonFinite => non_finite += 1,
             UpdateOutcome::RejectedNegative => negative += 1,
             UpdateOutcome::Accepted | UpdateOutcome::OutsideDomain => {}
+            other => return Err(TestCaseError::fail(format!("an outcome this suite does not know: {other:?}"))),
         }
     }
     let after = guide.stats();

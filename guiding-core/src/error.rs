@@ -4,6 +4,7 @@ use core::fmt;
 
 /// Why a guide could not be built, configured or decoded.
 #[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
 pub enum Error {
     /// A setting is outside its valid range.
     InvalidSetting {
@@ -63,6 +64,7 @@ pub enum Error {
 
 /// Why a serialized guide was rejected. Offsets are byte offsets into the buffer.
 #[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
 pub enum DecodeError {
     /// The buffer ends before a field that should be there.
     Truncated {

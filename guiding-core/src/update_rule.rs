@@ -16,6 +16,7 @@ use crate::error::Error;
 
 /// The learning rate α of Eq. (1).
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[non_exhaustive]
 pub enum LearningRate {
     /// A constant α in [0, 1]: Q is the exponential moving average of its targets, which
     /// keeps adapting as the targets change. α = 0 never changes Q; α = 1 replaces it.
@@ -86,6 +87,7 @@ impl LearningRate {
 /// How the integral `∫ Q(y,ωi) fs cos θi dωi` at the next vertex is estimated from a
 /// region's piecewise-constant Q (N entries, each covering a solid angle ΔΩ).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[non_exhaustive]
 pub enum IntegralEstimator {
     /// Σ Q_j · w_j with w_j = ∫ over entry j of fs cos dω: exact weights when the BSDF is
     /// Lambertian (precomputed cosine integrals), otherwise fs·cos at the entry's centre
@@ -140,6 +142,7 @@ impl UpdateRule {
 
 /// How a target was taken by [`Guide::update`](crate::Guide::update).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[non_exhaustive]
 pub enum UpdateOutcome {
     /// The target was blended into Q.
     Accepted,

@@ -121,6 +121,7 @@ impl LodestarGuideConfig {
             mapping: match s.layout.mapping {
                 HemisphereMapping::Cylindrical => LodestarMapping::Cylindrical,
                 HemisphereMapping::ConcentricSquare => LodestarMapping::ConcentricSquare,
+                other => unreachable!("{other:?} has no C value yet: add it to LodestarMapping"),
             } as u32,
             resolution: s.layout.resolution,
             two_sided: s.two_sided as u32,
@@ -218,6 +219,7 @@ pub(crate) fn update_rule_to_c(rule: &UpdateRule) -> (u32, f32, u32) {
         LearningRate::RegionVisits => (LodestarLearningRate::RegionVisits, 0.0),
         LearningRate::Exponential { alpha } => (LodestarLearningRate::Exponential, alpha),
         LearningRate::Global { exponent } => (LodestarLearningRate::Global, exponent),
+        other => unreachable!("{other:?} has no C value yet: add it to LodestarLearningRate"),
     };
     let integral = match rule.integral {
         IntegralEstimator::BsdfWeightedSum => LodestarIntegralEstimator::BsdfWeightedSum,
@@ -225,6 +227,7 @@ pub(crate) fn update_rule_to_c(rule: &UpdateRule) -> (u32, f32, u32) {
         IntegralEstimator::MaxEntry => LodestarIntegralEstimator::MaxEntry,
         IntegralEstimator::BsdfSampled => LodestarIntegralEstimator::BsdfSampled,
         IntegralEstimator::PathContinuation => LodestarIntegralEstimator::PathContinuation,
+        other => unreachable!("{other:?} has no C value yet: add it to LodestarIntegralEstimator"),
     };
     (learning_rate as u32, parameter, integral as u32)
 }

@@ -49,6 +49,7 @@ impl LodestarLightGuideConfig {
                 LightUpdateRule::UnoccludedAverage => LodestarLightRule::UnoccludedAverage,
                 LightUpdateRule::MeanContribution => LodestarLightRule::MeanContribution,
                 LightUpdateRule::VisibilityRatio => LodestarLightRule::VisibilityRatio,
+                other => unreachable!("{other:?} has no C value yet: add it to LodestarLightRule"),
             } as u32,
             budget_bytes: s.budget_bytes as u64,
             resolution: s.resolution.unwrap_or([0; 3]),

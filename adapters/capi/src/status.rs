@@ -66,6 +66,8 @@ impl Failure {
             }
             Error::Decode(_) => LodestarStatus::DecodeFailed,
             Error::Incompatible { .. } => LodestarStatus::InvalidArgument,
+            // An error this C layer does not classify yet: its message still says what.
+            _ => LodestarStatus::InternalError,
         };
         Self::new(status, format!("{during}: {error}"))
     }

@@ -101,6 +101,10 @@ impl LodestarUpdateOutcome {
                 LodestarStatus::InvalidArgument,
                 format!("`{name}` = {value} is negative: rejected and counted, not stored"),
             )),
+            other => Err(Failure::new(
+                LodestarStatus::InternalError,
+                format!("`{name}`: update outcome {other:?} has no C value yet"),
+            )),
         }
     }
 }

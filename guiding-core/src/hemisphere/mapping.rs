@@ -18,6 +18,7 @@ pub const MAX_PATCHES: u32 = 1 << 16;
 
 /// Which equal-area map turns the unit square into the hemisphere.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[non_exhaustive]
 pub enum HemisphereMapping {
     /// u = cos θ, v = φ/2π (Lambert's cylindrical projection): patches are bands in
     /// cos θ cut into wedges in φ; simple and exact, slivers near the pole.

@@ -5,6 +5,7 @@ use crate::error::{require, Error};
 
 /// How V(c, l) learns from next-event shadow rays.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[non_exhaustive]
 pub enum LightUpdateRule {
     /// The seed's Eq. (3): every unoccluded shadow ray blends ‖C‖∞ (its unshadowed
     /// contribution) into V with α = 1/(1+n), n the number of such updates; occluded rays

@@ -56,6 +56,7 @@ pub(super) fn learning_rate_code(rate: LearningRate) -> (f32, f32) {
         LearningRate::SimpleAverage => (1.0, 0.0),
         LearningRate::RegionVisits => (2.0, 0.0),
         LearningRate::Global { .. } => (1.0, 0.0),
+        other => unreachable!("{other:?} has no shader code yet"),
     }
 }
 
