@@ -6,7 +6,7 @@
 //!
 //! `cargo bench --bench guide_operations`
 
-#[path = "../tests/support/mod.rs"]
+#[path = "../guiding-core/tests/support/mod.rs"]
 mod support;
 
 use std::hint::black_box;

@@ -5,6 +5,8 @@
 //! primitive, t within 1e-5 relative (the reference's winner refined to its plane's t,
 //! as the adapter does), same occlusion answer.
 
+// The box helpers of guiding-core's own tests, shared rather than copied.
+#[path = "../guiding-core/tests/support/mod.rs"]
 mod support;
 
 use glam::Vec3;
