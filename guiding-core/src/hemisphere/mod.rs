@@ -2,14 +2,17 @@
 //! hemisphere of equal-area patches holding Q.
 
 mod candidate_table;
+mod distribution;
 mod grid;
 mod mapping;
+mod merge;
 mod probe_lookup;
 mod probes;
 mod serialize;
 mod settings;
 
-pub use grid::{HemisphereGrid, ProbeDistribution, ProbeId};
+pub use distribution::ProbeDistribution;
+pub use grid::{HemisphereGrid, ProbeId};
 pub use mapping::{HemisphereMapping, PatchLayout, MAX_PATCHES};
 pub use probe_lookup::ProbeLookup;
 pub use probes::ProbeSet;
