@@ -89,6 +89,54 @@ impl Camera {
     }
 }
 
+/// Where a point in the scene lands on the image, for connecting a light path to the
+/// camera: its pixel, the unit direction and distance from the point to the eye, and the
+/// importance that connection carries.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EyeConnection {
+    /// The pixel (column, row) the point projects into.
+    pub pixel: (u32, u32),
+    /// Unit direction from the point to the eye.
+    pub to_eye: Vec3,
+    /// Distance from the point to the eye.
+    pub distance: f32,
+    /// W_e·cos θ_e / r²: the pinhole's importance towards the point (normalised over the
+    /// whole image, W_e = 1/(A·cos⁴θ_e), A the image plane's area at distance 1) times
+    /// the geometry term's camera side, per unit area at the point facing the eye. A
+    /// light path's contribution to the image's mean is its throughput times the
+    /// surface's f·cos there times this; to a pixel's value, that times the pixel count.
+    pub importance: f32,
+}
+
+impl Camera {
+    /// The connection of `point` to the eye, if the point lies in front of the camera
+    /// and inside the image ([`ray`](Self::ray) inverted).
+    pub fn connect(&self, point: Vec3) -> Option<EyeConnection> {
+        let offset = self.eye - point;
+        let distance = offset.length();
+        if !(distance.is_finite() && distance > 0.0) {
+            return None;
+        }
+        let to_eye = offset / distance;
+        let view = -to_eye;
+        let cos_eye = view.dot(self.forward);
+        if cos_eye <= 0.0 {
+            return None;
+        }
+        let tan_half_fov_y = self.tan_half_fov_y();
+        let aspect = self.width as f32 / self.height as f32;
+        let (ndc_x, ndc_y) = (view.dot(self.right) / cos_eye, view.dot(self.up) / cos_eye);
+        let x = (ndc_x / (aspect * tan_half_fov_y) + 1.0) * 0.5 * self.width as f32;
+        let y = (1.0 - ndc_y / tan_half_fov_y) * 0.5 * self.height as f32;
+        if !(x >= 0.0 && y >= 0.0 && x < self.width as f32 && y < self.height as f32) {
+            return None;
+        }
+        let plane_area = 4.0 * aspect * tan_half_fov_y * tan_half_fov_y;
+        let importance = 1.0 / (plane_area * cos_eye * cos_eye * cos_eye * distance * distance);
+        Some(EyeConnection { pixel: (x as u32, y as u32), to_eye, distance, importance })
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -115,5 +163,27 @@ mod tests {
             let right = camera.ray(Vec2::new(camera.width as f32, camera.height as f32 / 2.0)).direction;
             assert!((right.x + right.z).abs() < 1e-5, "45° to the right: {right}");
         }
+    }
+
+    #[test]
+    fn a_point_on_a_camera_ray_connects_back_to_its_pixel() {
+        let (eye, target) = (Vec3::new(0.3, 1.0, 4.0), Vec3::new(0.0, 1.2, 0.0));
+        for mirrored in [false, true] {
+            let camera = Camera::oriented(eye, target, Vec3::Y, (50.0, FovAxis::Vertical), 64, 48, mirrored).unwrap();
+            for (x, y) in [(0.5, 0.5), (10.25, 40.75), (63.5, 47.5), (32.0, 24.0)] {
+                let ray = camera.ray(Vec2::new(x, y));
+                let point = ray.origin + ray.direction * 3.7;
+                let connection = camera.connect(point).expect("in view");
+                assert_eq!(connection.pixel, (x as u32, y as u32), "mirrored {mirrored}");
+                assert!((connection.to_eye + ray.direction).length() < 1e-5);
+                assert!((connection.distance - 3.7).abs() < 1e-4);
+            }
+            assert!(camera.connect(eye - (target - eye)).is_none(), "behind the camera");
+        }
+        // The importance integrates to one over the image plane at distance 1: at its
+        // centre, a unit of area facing the eye sees 1/A.
+        let camera = Camera::look_at(Vec3::ZERO, Vec3::NEG_Z, Vec3::Y, 90.0, 100, 50).unwrap();
+        let centre = camera.connect(Vec3::new(0.0, 0.0, -1.0)).unwrap();
+        assert!((centre.importance - 1.0 / (4.0 * 2.0 * 1.0)).abs() < 1e-6, "{}", centre.importance);
     }
 }

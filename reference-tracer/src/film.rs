@@ -119,6 +119,11 @@ impl Film {
         }
     }
 
+    /// Pixels per row.
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
     /// Passes in the image: the finished iterations that count and the current one.
     pub fn passes(&self) -> u32 {
         self.kept_passes + self.passes

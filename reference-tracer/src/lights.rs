@@ -158,6 +158,14 @@ impl AreaLights {
         Some(LightSample { wi, distance, radiance: self.emission[light], pdf })
     }
 
+    /// A point drawn uniformly on `light` from `u`, for a path that starts there: the
+    /// point and the front normal it emits around (zero where the shape has none).
+    pub fn emission_point(&self, light: u32, u: Vec2) -> Option<(Vec3, Vec3)> {
+        let light = light as usize;
+        let triangle = self.shapes.get(light)?;
+        Some((triangle.point(square_to_triangle_barycentrics(u)), self.normals[light]))
+    }
+
     /// Density per steradian with which [`sample_point`](Self::sample_point) produces the
     /// direction from `from` to `point` on `light` (normal `normal`).
     pub fn point_pdf(&self, light: u32, from: Vec3, point: Vec3, normal: Vec3) -> f32 {

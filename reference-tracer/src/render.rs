@@ -12,7 +12,7 @@ use rayon::prelude::*;
 
 use crate::film::{Combine, Film};
 use crate::integrator::{
-    EnvironmentSampling, IntegratorSettings, LightSelection, PathCounters, PathScratch, PathTracer,
+    EnvironmentSampling, IntegratorSettings, LightSelection, Method, PathCounters, PathScratch, PathTracer,
 };
 use crate::output::Image;
 use crate::scene::Scene;
@@ -176,33 +176,11 @@ pub fn render<I: Intersector, G: Guide>(
         .with_guide_shares(guide_shares.as_deref())
         .with_gate(gate.as_deref());
         let pass_seed = pass_seed(settings.seed, pass);
-        // Rows come back in order, so the pass sum is added up in the same order on every
-        // run: renders that do not learn are reproducible to the last bit.
-        let rows: Vec<(PathCounters, [f64; 3])> = film
-            .pixels_mut()
-            .par_chunks_mut(width)
-            .enumerate()
-            .map_init(PathScratch::default, |scratch, (y, row)| {
-                let mut counters = PathCounters::default();
-                let mut row_sum = [0.0f64; 3];
-                for (x, pixel) in row.iter_mut().enumerate() {
-                    let mut rng = pixel_rng(pass_seed, (y * width + x) as u64);
-                    let ray = tracer.camera_ray(x as u32, y as u32, &mut rng);
-                    let radiance = tracer.radiance(ray, &mut rng, scratch, &mut counters);
-                    // A NaN or infinite sample would poison the pixel for good: count the
-                    // path as lost instead (it never happens with valid scenes).
-                    let radiance = if radiance.is_finite() { radiance } else { Vec3::ZERO };
-                    Film::add(pixel, radiance);
-                    for c in 0..3 {
-                        row_sum[c] += radiance[c] as f64;
-                    }
-                }
-                (counters, row_sum)
-            })
-            .collect();
-        let (counters, pass_sum) = rows.iter().fold((PathCounters::default(), [0.0f64; 3]), |(c, s), (rc, rs)| {
-            (c + *rc, [s[0] + rs[0], s[1] + rs[1], s[2] + rs[2]])
-        });
+        let (counters, pass_sum) = if settings.integrator.method == Method::Light {
+            light_pass(&tracer, &mut film, pass_seed)
+        } else {
+            camera_pass(&tracer, &mut film, pass_seed)
+        };
         statistics.add_pass(pass_sum, width * height, counters);
         let rebuild = Instant::now();
         let step = match settings.schedule {
@@ -275,6 +253,82 @@ pub fn render<I: Intersector, G: Guide>(
         }
     }
     (film.image(), statistics)
+}
+
+/// One camera path per pixel, added to `film`; the pass's counters and radiance sum.
+fn camera_pass<I: Intersector, G: Guide>(
+    tracer: &PathTracer<'_, I, G>,
+    film: &mut Film,
+    pass_seed: u64,
+) -> (PathCounters, [f64; 3]) {
+    let width = film.width();
+    // Rows come back in order, so the pass sum is added up in the same order on every
+    // run: renders that do not learn are reproducible to the last bit.
+    let rows: Vec<(PathCounters, [f64; 3])> = film
+        .pixels_mut()
+        .par_chunks_mut(width)
+        .enumerate()
+        .map_init(PathScratch::default, |scratch, (y, row)| {
+            let mut counters = PathCounters::default();
+            let mut row_sum = [0.0f64; 3];
+            for (x, pixel) in row.iter_mut().enumerate() {
+                let mut rng = pixel_rng(pass_seed, (y * width + x) as u64);
+                let ray = tracer.camera_ray(x as u32, y as u32, &mut rng);
+                let radiance = tracer.radiance(ray, &mut rng, scratch, &mut counters);
+                // A NaN or infinite sample would poison the pixel for good: count the
+                // path as lost instead (it never happens with valid scenes).
+                let radiance = if radiance.is_finite() { radiance } else { Vec3::ZERO };
+                Film::add(pixel, radiance);
+                for c in 0..3 {
+                    row_sum[c] += radiance[c] as f64;
+                }
+            }
+            (counters, row_sum)
+        })
+        .collect();
+    rows.iter().fold((PathCounters::default(), [0.0f64; 3]), |(c, s), (rc, rs)| {
+        (c + *rc, [s[0] + rs[0], s[1] + rs[1], s[2] + rs[2]])
+    })
+}
+
+/// Groups of light paths traced in parallel, each group into its own splat image; the
+/// images are summed in a fixed order, so a light-traced render is reproducible to the
+/// last bit whatever the thread count (which this also caps).
+const LIGHT_PATH_GROUPS: usize = 8;
+
+/// As many light paths as pixels, each splatting its camera connections; the summed
+/// splat image is added to `film` as one sample per pixel (a pixel's value is its
+/// splats times the pixel count over the paths traced: one here).
+fn light_pass<I: Intersector, G: Guide>(
+    tracer: &PathTracer<'_, I, G>,
+    film: &mut Film,
+    pass_seed: u64,
+) -> (PathCounters, [f64; 3]) {
+    let pixels = film.pixels_mut().len();
+    let per_group = pixels.div_ceil(LIGHT_PATH_GROUPS);
+    let groups: Vec<(PathCounters, Vec<Vec3>)> = (0..LIGHT_PATH_GROUPS)
+        .into_par_iter()
+        .map(|group| {
+            let mut splat = vec![Vec3::ZERO; pixels];
+            let mut counters = PathCounters::default();
+            for path in group * per_group..((group + 1) * per_group).min(pixels) {
+                let mut rng = pixel_rng(pass_seed, path as u64);
+                tracer.light_path(&mut rng, &mut splat, &mut counters);
+            }
+            (counters, splat)
+        })
+        .collect();
+    let counters = groups.iter().fold(PathCounters::default(), |sum, (c, _)| sum + *c);
+    let mut pass_sum = [0.0f64; 3];
+    for (index, pixel) in film.pixels_mut().iter_mut().enumerate() {
+        let value = groups.iter().fold(Vec3::ZERO, |sum, (_, splat)| sum + splat[index]);
+        let value = if value.is_finite() { value } else { Vec3::ZERO };
+        Film::add(pixel, value);
+        for c in 0..3 {
+            pass_sum[c] += value[c] as f64;
+        }
+    }
+    (counters, pass_sum)
 }
 
 /// What becomes of a finished pass.

@@ -190,6 +190,26 @@ impl Prepared {
         settings: &RenderSettings,
         mut on_pass: impl FnMut(&Progress<'_>),
     ) -> Result<(Image, RenderStatistics), String> {
+        if settings.integrator.method == Method::Light {
+            if self.device == Device::Gpu {
+                return Err("light: the GPU tracer has no light tracing (use --device cpu)".into());
+            }
+            if self.scene.environment.is_some() {
+                return Err("light: light paths start on area lights only, and this scene's environment \
+                            would be missing from the image (use nee)"
+                    .into());
+            }
+            if self.scene.lights.is_empty() {
+                return Err("light: the scene has no area light to start light paths from".into());
+            }
+            let delta = crate::plan::SceneFacts::of(&self.scene).delta_triangles;
+            if delta > 0 {
+                return Err(format!(
+                    "light: a light path cannot connect to the camera through a mirror or glass, so the \
+                     scene's {delta} delta triangles (and all they show) would render black (use nee)"
+                ));
+            }
+        }
         if self.device == Device::Gpu {
             if settings.integrator.nee_kickstart && settings.integrator.method == Method::Guided {
                 return Err("--nee-kickstart on: the GPU tracer's guided method has no next-event estimation \

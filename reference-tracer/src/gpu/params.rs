@@ -66,5 +66,7 @@ pub(super) fn method_code(method: Method) -> u32 {
         Method::Nee => 1,
         Method::Guided => 2,
         Method::GuidedNee => 3,
+        // Refused before the GPU is reached (`Prepared::render`).
+        Method::Light => unreachable!("the GPU tracer has no light tracing"),
     }
 }

@@ -11,11 +11,13 @@ pub enum Method {
     Guided,
     /// Guided plus next-event estimation.
     GuidedNee,
+    /// Light tracing: paths start on area lights, every vertex connects to the camera.
+    Light,
 }
 
 impl Method {
     /// Every method, in the order the command line lists them.
-    pub const ALL: [Method; 4] = [Method::Pt, Method::Nee, Method::Guided, Method::GuidedNee];
+    pub const ALL: [Method; 5] = [Method::Pt, Method::Nee, Method::Guided, Method::GuidedNee, Method::Light];
 
     /// The command-line name.
     pub fn name(self) -> &'static str {
@@ -24,6 +26,7 @@ impl Method {
             Method::Nee => "nee",
             Method::Guided => "guided",
             Method::GuidedNee => "guided-nee",
+            Method::Light => "light",
         }
     }
 

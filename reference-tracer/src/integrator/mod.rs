@@ -1,11 +1,14 @@
 //! The path tracing integrators: `pt` (BSDF sampling), `nee` (plus next-event estimation
 //! with MIS), `guided` (Dahm & Keller's Fig. 2E: sample the guide with probability
 //! p_guide, else the BSDF, weighted by the one-sample MIS mixture pdf) and `guided-nee`
-//! (both, with light samples MIS-weighted against the mixture). Guided paths also learn:
-//! after each path every vertex with a guide region is updated by Eq. (1).
+//! (both, with light samples MIS-weighted against the mixture), and `light` (light
+//! tracing: paths from the area lights, each vertex connected to the camera). Guided
+//! paths also learn: after each path every vertex with a guide region is updated by
+//! Eq. (1).
 
 mod counters;
 mod direct;
+mod light_path;
 mod method;
 mod path;
 mod settings;

@@ -1,0 +1,79 @@
+//! Light tracing (`--integrator light`) against next-event estimation: on cornell the two
+//! estimate one image, so their per-image means agree within 4 standard errors, and
+//! their per-pixel difference is at the level of two nee renders' noise (a light path
+//! splatted into the wrong pixel, or with a wrong importance, shows there).
+
+mod support;
+
+use reference_tracer::integrator::Method;
+use reference_tracer::output::Image;
+use support::{assert_agree, mean_estimate, render_image, repository_scene, settings};
+
+/// Mean squared difference of two images relative to their mean, over pixels and
+/// channels.
+fn relative_difference(a: &Image, b: &Image) -> f64 {
+    let (mut sum, mut count) = (0.0, 0usize);
+    for (p, q) in a.pixels.iter().zip(&b.pixels) {
+        for c in 0..3 {
+            let mean = 0.5 * (p[c] + q[c]) as f64;
+            sum += ((p[c] - q[c]) as f64).powi(2) / (mean * mean + 1e-2);
+            count += 1;
+        }
+    }
+    sum / count as f64
+}
+
+#[test]
+fn light_tracing_renders_cornell_as_nee_does() {
+    let scene = repository_scene("cornell", 24, 24);
+    let spp = 256;
+    let (nee, nee_stats) = render_image(&scene, settings(Method::Nee), None, spp, 11);
+    let (again, _) = render_image(&scene, settings(Method::Nee), None, spp, 12);
+    let (light, light_stats) = render_image(&scene, settings(Method::Light), None, spp, 13);
+    assert_agree("cornell light against nee", &mean_estimate(&light_stats), &mean_estimate(&nee_stats));
+    let noise = relative_difference(&nee, &again);
+    let difference = relative_difference(&light, &nee);
+    // Light tracing is noisier per pixel than nee on some pixels (the light seen
+    // directly), so its difference may be larger, but not by an order of magnitude.
+    assert!(difference < 3.0 * noise, "light against nee {difference:.3e}, nee against nee {noise:.3e}");
+    // Quadrant by quadrant: a mirrored or shifted splat would move light between them.
+    let quadrant_mean = |image: &Image, qx: usize, qy: usize| -> f64 {
+        let (w, h) = (image.width, image.height);
+        let mut sum = 0.0;
+        for y in qy * h / 2..(qy + 1) * h / 2 {
+            for x in qx * w / 2..(qx + 1) * w / 2 {
+                let p = image.pixels[y * w + x];
+                sum += (p.x + p.y + p.z) as f64;
+            }
+        }
+        sum / (w * h / 4) as f64
+    };
+    for (qx, qy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+        let (a, b) = (quadrant_mean(&light, qx, qy), quadrant_mean(&nee, qx, qy));
+        assert!((a - b).abs() < 0.05 * b, "quadrant ({qx}, {qy}): light {a}, nee {b}");
+    }
+}
+
+#[test]
+fn light_tracing_refuses_what_it_cannot_render() {
+    let glossy = repository_scene("glossy", 16, 16);
+    let lights = reference_tracer::cli::LightRequest::new(None, None, false);
+    let choice = reference_tracer::scene_intersector::IntersectorChoice::default();
+    let mut prepared = reference_tracer::cli::prepare_with_lights(&glossy, choice, None, lights).unwrap();
+    let render = reference_tracer::render::RenderSettings {
+        integrator: settings(Method::Light),
+        budget: reference_tracer::render::Budget::SamplesPerPixel(1),
+        seed: 1,
+        train_seconds: 0.0,
+        schedule: support::Schedule::Online,
+        combine: reference_tracer::film::Combine::default(),
+        training_share: reference_tracer::schedule::DEFAULT_TRAINING_SHARE,
+    };
+    let error = prepared.render(&render, |_| {}).unwrap_err();
+    assert!(error.contains("delta triangles"), "{error}");
+    let window = repository_scene("window", 16, 16);
+    let lights = reference_tracer::cli::LightRequest::new(None, None, false);
+    let mut prepared = reference_tracer::cli::prepare_with_lights(&window, choice, None, lights).unwrap();
+    let error = prepared.render(&render, |_| {}).unwrap_err();
+    assert!(error.contains("environment") || error.contains("delta"), "{error}");
+}
