@@ -6,13 +6,14 @@ use std::time::Instant;
 
 use glam::Vec3;
 use guiding_core::{
-    EnvTileGuide, FocalGuide, Guide, HemisphereGrid, Intersector, LightGuide, NextEventGate, Pcg32, StrategyShares,
+    EnvTileGuide, FocalGuide, Guide, HemisphereGrid, Intersector, LightGuide, NextEventGate, PathRecorder, Pcg32,
+    StrategyShares,
 };
 use rayon::prelude::*;
 
 use crate::film::{Combine, Film};
 use crate::integrator::{
-    EnvironmentSampling, IntegratorSettings, LightSelection, Method, PathCounters, PathScratch, PathTracer,
+    EnvironmentSampling, IntegratorSettings, LightSelection, PathCounters, PathScratch, PathTracer,
 };
 use crate::output::Image;
 use crate::scene::Scene;
@@ -176,7 +177,7 @@ pub fn render<I: Intersector, G: Guide>(
         .with_guide_shares(guide_shares.as_deref())
         .with_gate(gate.as_deref());
         let pass_seed = pass_seed(settings.seed, pass);
-        let (counters, pass_sum) = if settings.integrator.method == Method::Light {
+        let (counters, pass_sum) = if settings.integrator.method.traces_light() {
             light_pass(&tracer, &mut film, pass_seed)
         } else {
             camera_pass(&tracer, &mut film, pass_seed)
@@ -310,10 +311,10 @@ fn light_pass<I: Intersector, G: Guide>(
         .into_par_iter()
         .map(|group| {
             let mut splat = vec![Vec3::ZERO; pixels];
-            let mut counters = PathCounters::default();
+            let (mut counters, mut recorder) = (PathCounters::default(), PathRecorder::new());
             for path in group * per_group..((group + 1) * per_group).min(pixels) {
                 let mut rng = pixel_rng(pass_seed, path as u64);
-                tracer.light_path(&mut rng, &mut splat, &mut counters);
+                tracer.light_path(&mut rng, &mut splat, &mut recorder, &mut counters);
             }
             (counters, splat)
         })

@@ -1,13 +1,15 @@
-//! Light tracing (`--integrator light`) against next-event estimation: on cornell the two
-//! estimate one image, so their per-image means agree within 4 standard errors, and
-//! their per-pixel difference is at the level of two nee renders' noise (a light path
-//! splatted into the wrong pixel, or with a wrong importance, shows there).
+//! Light tracing (`--integrator light`, and `light-guided` with W learned by a hemisphere
+//! grid) against next-event estimation: on cornell they estimate one image, so their
+//! per-image means agree within 4 standard errors, and their per-pixel difference is at
+//! the level of two nee renders' noise (a light path splatted into the wrong pixel, or
+//! with a wrong importance or guide pdf, shows there).
 
 mod support;
 
-use reference_tracer::integrator::Method;
+use guiding_core::HemisphereGridSettings;
+use reference_tracer::integrator::{IntegratorSettings, Method};
 use reference_tracer::output::Image;
-use support::{assert_agree, mean_estimate, render_image, repository_scene, settings};
+use support::{assert_agree, mean_estimate, render_image, render_scheduled, repository_scene, settings, Schedule};
 
 /// Mean squared difference of two images relative to their mean, over pixels and
 /// channels.
@@ -29,29 +31,36 @@ fn light_tracing_renders_cornell_as_nee_does() {
     let spp = 256;
     let (nee, nee_stats) = render_image(&scene, settings(Method::Nee), None, spp, 11);
     let (again, _) = render_image(&scene, settings(Method::Nee), None, spp, 12);
-    let (light, light_stats) = render_image(&scene, settings(Method::Light), None, spp, 13);
-    assert_agree("cornell light against nee", &mean_estimate(&light_stats), &mean_estimate(&nee_stats));
     let noise = relative_difference(&nee, &again);
-    let difference = relative_difference(&light, &nee);
-    // Light tracing is noisier per pixel than nee on some pixels (the light seen
-    // directly), so its difference may be larger, but not by an order of magnitude.
-    assert!(difference < 3.0 * noise, "light against nee {difference:.3e}, nee against nee {noise:.3e}");
-    // Quadrant by quadrant: a mirrored or shifted splat would move light between them.
-    let quadrant_mean = |image: &Image, qx: usize, qy: usize| -> f64 {
-        let (w, h) = (image.width, image.height);
-        let mut sum = 0.0;
-        for y in qy * h / 2..(qy + 1) * h / 2 {
-            for x in qx * w / 2..(qx + 1) * w / 2 {
-                let p = image.pixels[y * w + x];
-                sum += (p.x + p.y + p.z) as f64;
-            }
+    let grid = HemisphereGridSettings { probe_count: Some(40), ..Default::default() };
+    for (method, guide) in [(Method::Light, None), (Method::LightGuided, Some(grid.into()))] {
+        let integrator = IntegratorSettings { guide_probability: 0.5, ..settings(method) };
+        let (light, light_stats) = render_scheduled(&scene, integrator, guide, spp, 13, Schedule::Iterative);
+        let label = method.name();
+        assert_agree(label, &mean_estimate(&light_stats), &mean_estimate(&nee_stats));
+        // Light tracing is noisier per pixel than nee on some pixels (the light seen
+        // directly), so its difference may be larger, but not by an order of magnitude.
+        let difference = relative_difference(&light, &nee);
+        assert!(difference < 3.0 * noise, "{label} against nee {difference:.3e}, nee against nee {noise:.3e}");
+        // Quadrant by quadrant: a mirrored or shifted splat would move light between them.
+        for (qx, qy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+            let (a, b) = (quadrant_mean(&light, qx, qy), quadrant_mean(&nee, qx, qy));
+            assert!((a - b).abs() < 0.05 * b, "{label}, quadrant ({qx}, {qy}): {a} against nee's {b}");
         }
-        sum / (w * h / 4) as f64
-    };
-    for (qx, qy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
-        let (a, b) = (quadrant_mean(&light, qx, qy), quadrant_mean(&nee, qx, qy));
-        assert!((a - b).abs() < 0.05 * b, "quadrant ({qx}, {qy}): light {a}, nee {b}");
     }
+}
+
+/// The mean of one quadrant of an image (channels summed).
+fn quadrant_mean(image: &Image, qx: usize, qy: usize) -> f64 {
+    let (w, h) = (image.width, image.height);
+    let mut sum = 0.0;
+    for y in qy * h / 2..(qy + 1) * h / 2 {
+        for x in qx * w / 2..(qx + 1) * w / 2 {
+            let p = image.pixels[y * w + x];
+            sum += (p.x + p.y + p.z) as f64;
+        }
+    }
+    sum / (w * h / 4) as f64
 }
 
 #[test]

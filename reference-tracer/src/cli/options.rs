@@ -354,7 +354,8 @@ pub(super) fn parse_light_rule(s: &str) -> Result<LightUpdateRule, String> {
 }
 
 pub(super) fn parse_method(s: &str) -> Result<Method, String> {
-    Method::from_name(s).ok_or_else(|| format!("unknown integrator `{s}` (pt, nee, guided, guided-nee, light)"))
+    Method::from_name(s)
+        .ok_or_else(|| format!("unknown integrator `{s}` (pt, nee, guided, guided-nee, light, light-guided)"))
 }
 
 pub(super) fn parse_learning_rate(s: &str) -> Result<LearningRate, String> {

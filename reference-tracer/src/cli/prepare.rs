@@ -190,7 +190,7 @@ impl Prepared {
         settings: &RenderSettings,
         mut on_pass: impl FnMut(&Progress<'_>),
     ) -> Result<(Image, RenderStatistics), String> {
-        if settings.integrator.method == Method::Light {
+        if settings.integrator.method.traces_light() {
             if self.device == Device::Gpu {
                 return Err("light: the GPU tracer has no light tracing (use --device cpu)".into());
             }

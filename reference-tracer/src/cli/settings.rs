@@ -198,19 +198,22 @@ impl TraceOptions {
             (None, _) if self.without_nee_defaults(method) => u32::MAX,
             (None, _) => 1,
         };
+        // Light tracing learns W alone: no focal guide, no learned share, no camera-side
+        // next-event estimation to kick-start from.
+        let light = method.traces_light();
         IntegratorSettings {
             method,
             max_depth: self.max_depth.max(1),
             rr_depth: self.rr_depth,
             guide_probability: self.p_guide(),
             guide_depth,
-            focal_probability: self.p_focal(method),
+            focal_probability: if light { 0.0 } else { self.p_focal(method) },
             focal_learning_share: self.focal_learn,
-            learned_guide_share: self.guide_share() == GuideShare::Learned,
+            learned_guide_share: !light && self.guide_share() == GuideShare::Learned,
             density_weighted_learning: true,
             nee_weighs_guide: false,
             learn: true,
-            nee_kickstart: self.nee_kickstart.unwrap_or(self.without_nee_defaults(method)),
+            nee_kickstart: !light && self.nee_kickstart.unwrap_or(self.without_nee_defaults(method)),
             light_selection: plan.light_selection,
             environment_sampling: plan.environment_sampling,
         }

@@ -1,13 +1,21 @@
 //! Light tracing (`light`): a path starts on an area light and every vertex it reaches
 //! connects to the camera, its contribution splatted into the pixel it projects into
 //! (Veach's particle tracing, the bidirectional estimator with one camera vertex).
+//! `light-guided` draws each direction, the first one leaving the light included, from
+//! the BSDF (or the light's cosine) or, with probability p_guide, from the directional
+//! guide, weighted by the one-sample mixture's pdf; there the guide holds W, the
+//! importance a direction carries to the camera, learned from the light paths by
+//! Eq. (1) with the roles swapped: what arrives along a direction is the importance its
+//! next vertex's camera connection reflects back, plus (the path's own continuation)
+//! that vertex's target times its scattering factor.
 
 use glam::{Vec2, Vec3};
-use guiding_core::{Guide, Intersector, Pcg32, Ray};
+use guiding_core::{DirectionalDistribution, Frame, Guide, Intersector, PathRecorder, Pcg32, Ray};
 
 use super::counters::PathCounters;
 use super::tracer::PathTracer;
 use crate::camera::EyeConnection;
+use crate::color::luminance;
 use crate::material::{Material, ShadingFrame, Surface};
 
 /// Veach's correction of shading normals for light carried from `from` (towards the
@@ -28,8 +36,17 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
     /// to the mean of the image (see [`EyeConnection::importance`]), to `splat` (one
     /// entry per pixel, row by row). A pixel's estimate is its entry times the pixel
     /// count over the light paths traced.
-    pub fn light_path(&self, rng: &mut Pcg32, splat: &mut [Vec3], counters: &mut PathCounters) {
+    pub fn light_path(
+        &self,
+        rng: &mut Pcg32,
+        splat: &mut [Vec3],
+        path: &mut PathRecorder<G::Region>,
+        counters: &mut PathCounters,
+    ) {
         let settings = &self.settings;
+        let learning = settings.learn && self.guide.is_some();
+        let p_guide = if self.guide.is_some() { settings.guide_probability } else { 0.0 };
+        path.clear();
         let lights = &self.scene.lights;
         let camera = &self.scene.camera;
         counters.paths += 1;
@@ -43,28 +60,50 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
         if !(position_pdf > 0.0 && normal != Vec3::ZERO) {
             return;
         }
+        let width = camera.width as usize;
         let mut contributed = false;
-        let mut add = |connection: &EyeConnection, value: Vec3| {
-            if value.is_finite() && value.max_element() > 0.0 {
-                let (x, y) = connection.pixel;
-                splat[y as usize * camera.width as usize + x as usize] += value;
-                contributed = true;
-            }
-        };
         // The light itself, seen by the camera.
         if let Some(connection) = camera.connect(origin) {
             let cos_light = normal.dot(connection.to_eye);
             if cos_light > 0.0 && self.sees_eye(origin, normal, &connection, counters) {
-                add(&connection, emission * (cos_light * connection.importance / position_pdf));
+                contributed |= splat_into(
+                    splat,
+                    width,
+                    &connection,
+                    emission * (cos_light * connection.importance / position_pdf),
+                );
             }
         }
-        // Leave the light cosine-distributed about its normal: Le·cos/(p_A·cos/π).
-        let local = cosine_direction(rng.next_vec2());
-        let direction = guiding_core::Frame::from_normal(normal).to_world(local);
-        let mut throughput = emission * (std::f32::consts::PI / position_pdf);
-        // Russian roulette by the throughput relative to the light's own.
-        let mut relative = Vec3::ONE;
+        // Leave the light by the cosine about its normal, or by W: Le·cos/(p_A·p(ω)).
+        let region = self.guide.and_then(|guide| guide.locate(origin, normal));
+        let distribution = match (self.guide, region) {
+            (Some(guide), Some(region)) => Some(guide.distribution(region)),
+            _ => None,
+        };
+        let frame = Frame::from_normal(normal);
+        let (u_choice, u) = (rng.next_f32(), rng.next_vec2());
+        let direction = match &distribution {
+            Some(d) if u_choice < p_guide => d.sample(u).direction,
+            _ => frame.to_world(cosine_direction(u)),
+        };
+        let cos_light = direction.dot(normal);
+        let cosine_pdf = cos_light.max(0.0) * std::f32::consts::FRAC_1_PI;
+        let pdf = match &distribution {
+            Some(d) => p_guide * d.pdf(direction) + (1.0 - p_guide) * cosine_pdf,
+            None => cosine_pdf,
+        };
+        if !(cos_light > 0.0 && pdf > 0.0) {
+            self.finish_light_path(path, contributed, counters);
+            return;
+        }
+        let mut throughput = emission * (cos_light / (position_pdf * pdf));
+        // Russian roulette by the throughput relative to the light's own (what leaving
+        // by the cosine would give).
+        let mut relative = Vec3::splat(cosine_pdf / pdf);
         let mut ray = Ray::new(self.spawn(origin, normal, direction), direction);
+        if learning {
+            path.scattered(region, origin, direction, pdf, luminance(throughput), ());
+        }
         for depth in 0..settings.max_depth {
             counters.rays += 1;
             let Some((hit, material)) = self.next_surface(ray, rng, counters) else { break };
@@ -81,33 +120,75 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
                     let f = material.eval(&shading, from, connection.to_eye)
                         * shading_correction(&shading, from, connection.to_eye);
                     if f.max_element() > 0.0 && self.sees_eye(point, geometric_normal, &connection, counters) {
-                        add(&connection, throughput * f * connection.importance);
+                        contributed |= splat_into(splat, width, &connection, throughput * f * connection.importance);
+                        if learning {
+                            path.arrive(luminance(f) * connection.importance);
+                        }
                     }
                 }
             }
             if depth + 1 >= settings.max_depth {
                 break;
             }
+            let mut survival = 1.0;
             if depth + 1 >= settings.rr_depth {
-                let survival = relative.max_element().min(0.95);
+                survival = relative.max_element().min(0.95);
                 if survival <= 0.0 || rng.next_f32() >= survival {
                     break;
                 }
                 throughput /= survival;
                 relative /= survival;
             }
-            let (u, u_lobe) = (rng.next_vec2(), rng.next_f32());
-            let Some(sample) = material.sample(&shading, from, u, u_lobe) else { break };
-            let factor = importance_weight(&material, &shading, from, sample.wi, sample.weight);
-            if !(factor.is_finite() && factor.max_element() > 0.0) {
+            let (u_choice, u, u_lobe) = (rng.next_f32(), rng.next_vec2(), rng.next_f32());
+            let delta = material.is_delta();
+            let region = match self.guide {
+                Some(guide) if !delta => guide.locate(point, shading.frame.normal),
+                _ => None,
+            };
+            let distribution = match (self.guide, region) {
+                (Some(guide), Some(region)) => Some(guide.distribution(region)),
+                _ => None,
+            };
+            let (to, factor, pdf) = match &distribution {
+                Some(d) => {
+                    let to = if u_choice < p_guide {
+                        d.sample(u).direction
+                    } else {
+                        let Some(sample) = material.sample(&shading, from, u, u_lobe) else { break };
+                        sample.wi
+                    };
+                    let pdf = p_guide * d.pdf(to) + (1.0 - p_guide) * material.pdf(&shading, from, to);
+                    let f = material.eval(&shading, from, to) * shading_correction(&shading, from, to);
+                    (to, f / pdf, pdf)
+                }
+                None => {
+                    let Some(sample) = material.sample(&shading, from, u, u_lobe) else { break };
+                    let factor = importance_weight(&material, &shading, from, sample.wi, sample.weight);
+                    (sample.wi, factor, sample.pdf)
+                }
+            };
+            if !(factor.is_finite() && factor.max_element() > 0.0 && pdf > 0.0) {
                 break;
             }
             throughput *= factor;
             relative *= factor;
-            ray = Ray::new(self.spawn(point, geometric_normal, sample.wi), sample.wi);
+            if learning {
+                // The vertex before passes this one's target back, times its factor.
+                path.carry(luminance(factor) / survival);
+                path.scattered(region, point, to, pdf, luminance(throughput), ());
+            }
+            ray = Ray::new(self.spawn(point, geometric_normal, to), to);
         }
+        self.finish_light_path(path, contributed, counters);
+    }
+
+    /// Counts a finished light path and teaches its targets to the guide (when learning).
+    fn finish_light_path(&self, path: &PathRecorder<G::Region>, contributed: bool, counters: &mut PathCounters) {
         if contributed {
             counters.nonzero_paths += 1;
+        }
+        if let (true, Some(guide)) = (self.settings.learn, self.guide) {
+            path.learn(guide, self.settings.density_weighted_learning);
         }
     }
 
@@ -141,6 +222,16 @@ fn importance_weight(material: &Material, shading: &ShadingFrame, from: Vec3, to
         Surface::ThinDielectric { .. } => weight,
         _ => weight * shading_correction(shading, from, to),
     }
+}
+
+/// Adds `value` to the pixel `connection` lands in; whether it added anything.
+fn splat_into(splat: &mut [Vec3], width: usize, connection: &EyeConnection, value: Vec3) -> bool {
+    if !(value.is_finite() && value.max_element() > 0.0) {
+        return false;
+    }
+    let (x, y) = connection.pixel;
+    splat[y as usize * width + x as usize] += value;
+    true
 }
 
 /// A cosine-distributed direction about +z from two uniforms.

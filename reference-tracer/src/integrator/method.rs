@@ -13,11 +13,15 @@ pub enum Method {
     GuidedNee,
     /// Light tracing: paths start on area lights, every vertex connects to the camera.
     Light,
+    /// Light tracing guided by W, the importance learned from light paths by Eq. (1)
+    /// with the roles of light and camera swapped.
+    LightGuided,
 }
 
 impl Method {
     /// Every method, in the order the command line lists them.
-    pub const ALL: [Method; 5] = [Method::Pt, Method::Nee, Method::Guided, Method::GuidedNee, Method::Light];
+    pub const ALL: [Method; 6] =
+        [Method::Pt, Method::Nee, Method::Guided, Method::GuidedNee, Method::Light, Method::LightGuided];
 
     /// The command-line name.
     pub fn name(self) -> &'static str {
@@ -27,6 +31,7 @@ impl Method {
             Method::Guided => "guided",
             Method::GuidedNee => "guided-nee",
             Method::Light => "light",
+            Method::LightGuided => "light-guided",
         }
     }
 
@@ -42,7 +47,12 @@ impl Method {
 
     /// Whether directions are drawn from a learned guide.
     pub fn uses_guide(self) -> bool {
-        matches!(self, Method::Guided | Method::GuidedNee)
+        matches!(self, Method::Guided | Method::GuidedNee | Method::LightGuided)
+    }
+
+    /// Whether paths start on the lights (light tracing).
+    pub fn traces_light(self) -> bool {
+        matches!(self, Method::Light | Method::LightGuided)
     }
 }
 
