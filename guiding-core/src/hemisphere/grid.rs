@@ -625,14 +625,15 @@ impl Guide for HemisphereGrid {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::cdf::cdf_probability;
     use crate::distribution::DirectionalDistribution;
     use crate::hemisphere::ProbeSet;
     use alloc::vec;
 
-    fn one_probe(settings: HemisphereGridSettings) -> (HemisphereGrid, ProbeId) {
+    /// A grid of one probe at the origin facing +z, and that probe.
+    pub(in crate::hemisphere) fn one_probe(settings: HemisphereGridSettings) -> (HemisphereGrid, ProbeId) {
         let probes = ProbeSet { positions: vec![Vec3::ZERO], normals: vec![Vec3::Z], spacing: 1.0 };
         let grid = HemisphereGrid::from_probes(&probes, settings).unwrap();
         let probe = grid.locate(Vec3::ZERO, Vec3::Z).unwrap();

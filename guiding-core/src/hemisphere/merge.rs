@@ -87,14 +87,8 @@ mod tests {
 
     use super::*;
     use crate::guide::Guide;
-    use crate::hemisphere::{HemisphereGridSettings, ProbeId, ProbeSet};
-
-    fn one_probe(settings: HemisphereGridSettings) -> (HemisphereGrid, ProbeId) {
-        let probes = ProbeSet { positions: vec![Vec3::ZERO], normals: vec![Vec3::Z], spacing: 1.0 };
-        let grid = HemisphereGrid::from_probes(&probes, settings).unwrap();
-        let probe = grid.locate(Vec3::ZERO, Vec3::Z).unwrap();
-        (grid, probe)
-    }
+    use crate::hemisphere::grid::tests::one_probe;
+    use crate::hemisphere::{HemisphereGridSettings, ProbeSet};
 
     /// Resetting forgets every update: the grid serializes as one freshly built.
     #[test]
