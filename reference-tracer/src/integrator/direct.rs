@@ -8,10 +8,9 @@ use guiding_core::{DirectionalDistribution, GateCell, Guide, Hit, Intersector, L
 
 use super::counters::{PathCounters, GATE_PATH_STRIDE};
 use super::method::LightSelection;
-use super::tracer::{nee_partner_pdf, GuideClock, NeeCells, PathTracer};
+use super::tracer::{nee_partner_pdf, GuideClock, NeeCells, PathTracer, SurfaceInteraction};
 use crate::color::luminance;
 use crate::environment::Environment;
-use crate::material::{Material, ShadingFrame};
 use crate::sampling::power_heuristic;
 
 /// One light sample's result: the radiance it adds (MIS-weighted against scattering)
@@ -87,20 +86,18 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         }
     }
 
-    /// One light sample (area light or environment), MIS-weighted against scattering.
-    #[allow(clippy::too_many_arguments)]
+    /// One light sample (area light or environment) at `surface`, MIS-weighted against
+    /// scattering.
     pub(super) fn direct_light(
         &self,
-        material: &Material,
-        shading: &ShadingFrame,
-        (point, cells): (Vec3, NeeCells),
-        geometric_normal: Vec3,
-        wo: Vec3,
+        surface: &SurfaceInteraction,
+        cells: NeeCells,
         (distribution, guide_share, focal_share): (Option<&G::Distribution<'_>>, f32, f32),
         rng: &mut Pcg32,
         clock: &mut GuideClock,
         counters: &mut PathCounters,
     ) -> DirectLight {
+        let SurfaceInteraction { point, geometric_normal, wo, ref material, ref shading } = *surface;
         let nothing = DirectLight::default();
         let (u_choice, u_select, u) = (rng.next_f32(), rng.next_f32(), rng.next_vec2());
         // The gate may leave this vertex's light to the scattered direction; the number is

@@ -13,7 +13,7 @@ use glam::{Vec2, Vec3};
 use guiding_core::{DirectionalDistribution, Frame, Guide, Intersector, PathRecorder, Pcg32, Ray};
 
 use super::counters::PathCounters;
-use super::tracer::PathTracer;
+use super::tracer::{PathTracer, SurfaceInteraction};
 use crate::camera::EyeConnection;
 use crate::color::luminance;
 use crate::material::{Material, ShadingFrame, Surface};
@@ -108,17 +108,13 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
             counters.rays += 1;
             let Some((hit, material)) = self.next_surface(ray, rng, counters) else { break };
             counters.vertices += 1;
-            let triangle = &self.scene.triangles[hit.primitive as usize];
-            let point = triangle.point(hit.barycentrics);
-            let geometric_normal = self.scene.normals[hit.primitive as usize];
-            let shading_normal = self.scene.shading_normal(hit.primitive, hit.barycentrics);
-            // Towards where the light came from.
-            let from = -ray.direction;
-            let shading = material.shading_frame(geometric_normal, shading_normal, from);
+            // `from` points towards where the light came from.
+            let surface = self.interaction(&hit, material, ray.direction);
+            let SurfaceInteraction { point, geometric_normal, wo: from, ref material, ref shading } = surface;
             if !material.is_delta() {
                 if let Some(connection) = camera.connect(point) {
-                    let f = material.eval(&shading, from, connection.to_eye)
-                        * shading_correction(&shading, from, connection.to_eye);
+                    let f = material.eval(shading, from, connection.to_eye)
+                        * shading_correction(shading, from, connection.to_eye);
                     if f.max_element() > 0.0 && self.sees_eye(point, geometric_normal, &connection, counters) {
                         contributed |= splat_into(splat, width, &connection, throughput * f * connection.importance);
                         if learning {
@@ -154,16 +150,16 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
                     let to = if u_choice < p_guide {
                         d.sample(u).direction
                     } else {
-                        let Some(sample) = material.sample(&shading, from, u, u_lobe) else { break };
+                        let Some(sample) = material.sample(shading, from, u, u_lobe) else { break };
                         sample.wi
                     };
-                    let pdf = p_guide * d.pdf(to) + (1.0 - p_guide) * material.pdf(&shading, from, to);
-                    let f = material.eval(&shading, from, to) * shading_correction(&shading, from, to);
+                    let pdf = p_guide * d.pdf(to) + (1.0 - p_guide) * material.pdf(shading, from, to);
+                    let f = material.eval(shading, from, to) * shading_correction(shading, from, to);
                     (to, f / pdf, pdf)
                 }
                 None => {
-                    let Some(sample) = material.sample(&shading, from, u, u_lobe) else { break };
-                    let factor = importance_weight(&material, &shading, from, sample.wi, sample.weight);
+                    let Some(sample) = material.sample(shading, from, u, u_lobe) else { break };
+                    let factor = importance_weight(material, shading, from, sample.wi, sample.weight);
                     (sample.wi, factor, sample.pdf)
                 }
             };

@@ -9,7 +9,8 @@ use guiding_core::{
 
 use super::counters::{PathCounters, TIMED_PATH_STRIDE};
 use super::tracer::{
-    nee_partner_pdf, GuideClock, LearnedLightSample, NeeCells, PathScratch, PathTracer, ScalarBsdf, VertexStrategies,
+    nee_partner_pdf, GuideClock, LearnedLightSample, NeeCells, PathScratch, PathTracer, ScalarBsdf, SurfaceInteraction,
+    VertexStrategies,
 };
 use crate::color::luminance;
 use crate::material::{Material, ShadingFrame, Surface};
@@ -79,11 +80,8 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                 break;
             };
             counters.vertices += 1;
-            let material = &material;
-            let triangle = &self.scene.triangles[hit.primitive as usize];
-            let point = triangle.point(hit.barycentrics);
-            let geometric_normal = self.scene.normals[hit.primitive as usize];
-            let wo = -ray.direction;
+            let surface = self.interaction(&hit, material, ray.direction);
+            let SurfaceInteraction { point, geometric_normal, wo, ref material, ref shading } = surface;
 
             // Emission from the front face.
             if material.is_emissive() && geometric_normal.dot(wo) > 0.0 {
@@ -107,8 +105,6 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                     scratch.path.add_density(light_pdf);
                 }
             }
-            let shading_normal = self.scene.shading_normal(hit.primitive, hit.barycentrics);
-            let shading = material.shading_frame(geometric_normal, shading_normal, wo);
             let normal = shading.frame.normal;
             let delta = material.is_delta();
             // The guide's share here: fixed, or learned per region (where it learned 0 the
@@ -135,7 +131,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                             guide.estimate_integral(region, wo, &Lambertian { normal, albedo: luminance(albedo) }, u)
                         }
                         _ => {
-                            let bsdf = ScalarBsdf { material, shading: &shading, u_lobe };
+                            let bsdf = ScalarBsdf { material, shading, u_lobe };
                             guide.estimate_integral(region, wo, &bsdf, u)
                         }
                     });
@@ -169,11 +165,8 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             };
             if nee && !delta {
                 let direct = self.direct_light(
-                    material,
-                    &shading,
-                    (point, nee_cells),
-                    geometric_normal,
-                    wo,
+                    &surface,
+                    nee_cells,
                     (distribution.as_ref(), guide_share, focal_share),
                     rng,
                     clock,
@@ -216,7 +209,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             // spare a focal (and a guide) pdf per light sample.
             let (mut focal_arrival, mut focal_pdf_pending, mut guide_arrival) = (None, false, None);
             let (wi, factor, bsdf_factor, pdf, mis_pdf, sampled_delta) = if delta {
-                let Some(s) = material.sample(&shading, wo, u, u_lobe) else { break };
+                let Some(s) = material.sample(shading, wo, u, u_lobe) else { break };
                 (s.wi, s.weight, s.weight, s.pdf, s.pdf, true)
             } else {
                 let guide_probability = if distribution.is_some() { guide_share } else { 0.0 };
@@ -225,14 +218,14 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                     (_, Some(focal)) if u_choice < focal_share && focal_share > 0.0 => {
                         let u_point = Vec3::new(u_choice / focal_share, u.x, u.y);
                         let Some(s) = clock.time(|| focal.sample(point, u_lobe, u_point)) else { break };
-                        (s.direction, material.eval(&shading, wo, s.direction), None, Some(s.pdf))
+                        (s.direction, material.eval(shading, wo, s.direction), None, Some(s.pdf))
                     }
                     (Some(distribution), _) if u_choice < focal_share + guide_probability => {
                         let s = clock.time(|| distribution.sample(u));
-                        (s.direction, material.eval(&shading, wo, s.direction), Some(s.pdf), None)
+                        (s.direction, material.eval(shading, wo, s.direction), Some(s.pdf), None)
                     }
                     _ => {
-                        let Some(s) = material.sample(&shading, wo, u, u_lobe) else { break };
+                        let Some(s) = material.sample(shading, wo, u, u_lobe) else { break };
                         (s.wi, s.weight * s.pdf, None, None)
                     }
                 };
@@ -249,7 +242,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                 };
                 focal_pdf_pending = focal.is_some() && focal_pdf.is_none();
                 let focal_pdf = focal_pdf.unwrap_or(0.0);
-                let bsdf_pdf = material.pdf(&shading, wo, wi);
+                let bsdf_pdf = material.pdf(shading, wo, wi);
                 let mixture = self.mix_pdf(bsdf_pdf, guide_pdf.map(|g| (g, guide_share)), focal_share);
                 let pdf = mixture + focal_share * focal_pdf;
                 let mis_pdf = if settings.nee_weighs_guide {

@@ -135,6 +135,21 @@ pub struct PathTracer<'a, I: Intersector, G: Guide> {
     pub(super) carries_path: bool,
 }
 
+/// The surface a path reached, built once per hit: where it is, which way it faces,
+/// what it is made of there, and the frame it shades in as seen from `wo`.
+pub(super) struct SurfaceInteraction {
+    /// The hit point (scene units).
+    pub(super) point: Vec3,
+    /// The triangle's unit geometric normal, as its winding gives it.
+    pub(super) geometric_normal: Vec3,
+    /// Unit direction back along the ray that arrived.
+    pub(super) wo: Vec3,
+    /// The material there, textures evaluated.
+    pub(super) material: Material,
+    /// The shading frame seen from `wo`.
+    pub(super) shading: ShadingFrame,
+}
+
 /// A vertex's cells in the light guide and the next-event gate: next-event estimation
 /// there, and the MIS weight of emission found from there, read both.
 #[derive(Clone, Copy, Debug, Default)]
@@ -284,6 +299,17 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             counters.rays += 1;
         }
         0.0
+    }
+
+    /// The interaction at `hit`, reached along `direction`, with its `material`.
+    pub(super) fn interaction(&self, hit: &Hit, material: Material, direction: Vec3) -> SurfaceInteraction {
+        let primitive = hit.primitive as usize;
+        let point = self.scene.triangles[primitive].point(hit.barycentrics);
+        let geometric_normal = self.scene.normals[primitive];
+        let wo = -direction;
+        let shading_normal = self.scene.shading_normal(hit.primitive, hit.barycentrics);
+        let shading = material.shading_frame(geometric_normal, shading_normal, wo);
+        SurfaceInteraction { point, geometric_normal, wo, material, shading }
     }
 
     /// Image-space jitter plus camera ray for pixel (x, y).
