@@ -1,12 +1,12 @@
 //! Light tracing (`--integrator light`, and `light-guided` with W learned by a hemisphere
-//! grid) against next-event estimation: on cornell they estimate one image, so their
+//! grid or a spatial × directional tree) against next-event estimation: on cornell they estimate one image, so their
 //! per-image means agree within 4 standard errors, and their per-pixel difference is at
 //! the level of two nee renders' noise (a light path splatted into the wrong pixel, or
 //! with a wrong importance or guide pdf, shows there).
 
 mod support;
 
-use guiding_core::HemisphereGridSettings;
+use guiding_core::{HemisphereGridSettings, SpatialDirectionalTreeSettings};
 use reference_tracer::integrator::{IntegratorSettings, Method};
 use reference_tracer::output::Image;
 use support::{assert_agree, mean_estimate, render_image, render_scheduled, repository_scene, settings, Schedule};
@@ -33,7 +33,10 @@ fn light_tracing_renders_cornell_as_nee_does() {
     let (again, _) = render_image(&scene, settings(Method::Nee), None, spp, 12);
     let noise = relative_difference(&nee, &again);
     let grid = HemisphereGridSettings { probe_count: Some(40), ..Default::default() };
-    for (method, guide) in [(Method::Light, None), (Method::LightGuided, Some(grid.into()))] {
+    let tree = SpatialDirectionalTreeSettings::default();
+    let cases =
+        [(Method::Light, None), (Method::LightGuided, Some(grid.into())), (Method::LightGuided, Some(tree.into()))];
+    for (method, guide) in cases {
         let integrator = IntegratorSettings { guide_probability: 0.5, ..settings(method) };
         let (light, light_stats) = render_scheduled(&scene, integrator, guide, spp, 13, Schedule::Iterative);
         let label = method.name();
