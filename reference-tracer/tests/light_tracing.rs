@@ -1,8 +1,8 @@
 //! Light tracing (`--integrator light`, and `light-guided` with W learned by a hemisphere
-//! grid or a spatial × directional tree) against next-event estimation: on cornell they estimate one image, so their
-//! per-image means agree within 4 standard errors, and their per-pixel difference is at
-//! the level of two nee renders' noise (a light path splatted into the wrong pixel, or
-//! with a wrong importance or guide pdf, shows there).
+//! grid or a spatial × directional tree) against next-event estimation: on cornell they
+//! estimate one image, so their per-image means agree within 4 standard errors, and their
+//! per-pixel difference is at the level of two nee renders' noise (a light path splatted
+//! into the wrong pixel, or with a wrong importance or guide pdf, shows there).
 
 mod support;
 
