@@ -89,3 +89,27 @@ fn light_tracing_refuses_what_it_cannot_render() {
     let error = prepared.render(&render, |_| {}).unwrap_err();
     assert!(error.contains("environment") || error.contains("delta"), "{error}");
 }
+
+/// Cornell with one box made of a lace that lets half the light through (a masked
+/// material, opacity 0.5 everywhere): light tracing's camera connections pass it as the
+/// light samples of nee do, weighed by the transmittance.
+#[test]
+fn light_tracing_sees_through_masks_as_nee_does() {
+    let cornell = repository_scene("cornell", 24, 24);
+    let mut json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&cornell).unwrap()).unwrap();
+    json["textures"] =
+        serde_json::json!({ "half": { "type": "checkerboard", "even": [0.5, 0.5, 0.5], "odd": [0.5, 0.5, 0.5] } });
+    json["materials"]["lace"] =
+        serde_json::json!({ "type": "diffuse", "albedo": [0.7, 0.7, 0.7], "opacity_texture": "half" });
+    json["shapes"][5]["material"] = "lace".into();
+    let folder = cornell.parent().unwrap();
+    let scene = support::write_scene(folder, &json);
+    let spp = 256;
+    let (nee, nee_stats) = render_image(&scene, settings(Method::Nee), None, spp, 21);
+    let (light, light_stats) = render_image(&scene, settings(Method::Light), None, spp, 22);
+    assert_agree("masked cornell, light against nee", &mean_estimate(&light_stats), &mean_estimate(&nee_stats));
+    for (qx, qy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+        let (a, b) = (quadrant_mean(&light, qx, qy), quadrant_mean(&nee, qx, qy));
+        assert!((a - b).abs() < 0.05 * b, "masked, quadrant ({qx}, {qy}): light {a} against nee's {b}");
+    }
+}

@@ -65,13 +65,11 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
         // The light itself, seen by the camera.
         if let Some(connection) = camera.connect(origin) {
             let cos_light = normal.dot(connection.to_eye);
-            if cos_light > 0.0 && self.sees_eye(origin, normal, &connection, counters) {
-                contributed |= splat_into(
-                    splat,
-                    width,
-                    &connection,
-                    emission * (cos_light * connection.importance / position_pdf),
-                );
+            let visible =
+                if cos_light > 0.0 { self.eye_transmittance(origin, normal, &connection, counters) } else { 0.0 };
+            if visible > 0.0 {
+                let value = emission * (cos_light * visible * connection.importance / position_pdf);
+                contributed |= splat_into(splat, width, &connection, value);
             }
         }
         // Leave the light by the cosine about its normal, or by W: Le·cos/(p_A·p(ω)).
@@ -115,10 +113,16 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
                 if let Some(connection) = camera.connect(point) {
                     let f = material.eval(shading, from, connection.to_eye)
                         * shading_correction(shading, from, connection.to_eye);
-                    if f.max_element() > 0.0 && self.sees_eye(point, geometric_normal, &connection, counters) {
-                        contributed |= splat_into(splat, width, &connection, throughput * f * connection.importance);
+                    let visible = if f.max_element() > 0.0 {
+                        self.eye_transmittance(point, geometric_normal, &connection, counters)
+                    } else {
+                        0.0
+                    };
+                    if visible > 0.0 {
+                        let importance = visible * connection.importance;
+                        contributed |= splat_into(splat, width, &connection, throughput * f * importance);
                         if learning {
-                            path.arrive(luminance(f) * connection.importance);
+                            path.arrive(luminance(f) * importance);
                         }
                     }
                 }
@@ -188,16 +192,23 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
         }
     }
 
-    /// Whether nothing blocks the segment from `point` (on a surface of normal `normal`)
-    /// to the eye.
-    fn sees_eye(&self, point: Vec3, normal: Vec3, connection: &EyeConnection, counters: &mut PathCounters) -> bool {
+    /// The share of light that passes from `point` (on a surface of normal `normal`) to the
+    /// eye: 0 when something opaque blocks it, else the product of the masked surfaces'
+    /// 1 − opacity on the way (as a light sample's shadow ray counts them).
+    fn eye_transmittance(
+        &self,
+        point: Vec3,
+        normal: Vec3,
+        connection: &EyeConnection,
+        counters: &mut PathCounters,
+    ) -> f32 {
         let origin = self.spawn(point, normal, connection.to_eye);
         let length = connection.distance - 2.0 * self.epsilon_at(point);
         if length <= 0.0 {
-            return false;
+            return 0.0;
         }
         counters.rays += 1;
-        self.transmittance(Ray { t_max: length, ..Ray::new(origin, connection.to_eye) }, counters) > 0.0
+        self.transmittance(Ray { t_max: length, ..Ray::new(origin, connection.to_eye) }, counters)
     }
 }
 
