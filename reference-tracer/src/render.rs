@@ -158,6 +158,8 @@ pub fn render<I: Intersector, G: Guide>(
     let mut training = Training::new(guided && settings.schedule == Schedule::Iterative, settings.training_share);
     // Passes traced so far, kept or not: each gets its own seed.
     let mut traced = 0u32;
+    // Light tracing's splat images and path recorders, one per group, kept across passes.
+    let mut light_groups: Vec<LightGroup<G::Region>> = Vec::new();
     loop {
         let pass = traced;
         traced += 1;
@@ -178,7 +180,7 @@ pub fn render<I: Intersector, G: Guide>(
         .with_gate(gate.as_deref());
         let pass_seed = pass_seed(settings.seed, pass);
         let (counters, pass_sum) = if settings.integrator.method.traces_light() {
-            light_pass(&tracer, &mut film, pass_seed)
+            light_pass(&tracer, &mut film, &mut light_groups, pass_seed)
         } else {
             camera_pass(&tracer, &mut film, pass_seed)
         };
@@ -297,32 +299,40 @@ fn camera_pass<I: Intersector, G: Guide>(
 /// last bit whatever the thread count (which this also caps).
 const LIGHT_PATH_GROUPS: usize = 8;
 
+/// One group's splat image (a value per pixel, row by row) and the recorder its paths
+/// learn through.
+type LightGroup<R> = (Vec<Vec3>, PathRecorder<R>);
+
 /// As many light paths as pixels, each splatting its camera connections; the summed
 /// splat image is added to `film` as one sample per pixel (a pixel's value is its
-/// splats times the pixel count over the paths traced: one here).
+/// splats times the pixel count over the paths traced: one here). `groups` holds the
+/// groups' buffers from pass to pass (made on the first).
 fn light_pass<I: Intersector, G: Guide>(
     tracer: &PathTracer<'_, I, G>,
     film: &mut Film,
+    groups: &mut Vec<LightGroup<G::Region>>,
     pass_seed: u64,
 ) -> (PathCounters, [f64; 3]) {
     let pixels = film.pixels_mut().len();
     let per_group = pixels.div_ceil(LIGHT_PATH_GROUPS);
-    let groups: Vec<(PathCounters, Vec<Vec3>)> = (0..LIGHT_PATH_GROUPS)
-        .into_par_iter()
-        .map(|group| {
-            let mut splat = vec![Vec3::ZERO; pixels];
-            let (mut counters, mut recorder) = (PathCounters::default(), PathRecorder::new());
+    groups.resize_with(LIGHT_PATH_GROUPS, || (vec![Vec3::ZERO; pixels], PathRecorder::new()));
+    let counters: Vec<PathCounters> = groups
+        .par_iter_mut()
+        .enumerate()
+        .map(|(group, (splat, recorder))| {
+            splat.fill(Vec3::ZERO);
+            let mut counters = PathCounters::default();
             for path in group * per_group..((group + 1) * per_group).min(pixels) {
                 let mut rng = pixel_rng(pass_seed, path as u64);
-                tracer.light_path(&mut rng, &mut splat, &mut recorder, &mut counters);
+                tracer.light_path(&mut rng, splat, recorder, &mut counters);
             }
-            (counters, splat)
+            counters
         })
         .collect();
-    let counters = groups.iter().fold(PathCounters::default(), |sum, (c, _)| sum + *c);
+    let counters = counters.into_iter().fold(PathCounters::default(), |sum, c| sum + c);
     let mut pass_sum = [0.0f64; 3];
     for (index, pixel) in film.pixels_mut().iter_mut().enumerate() {
-        let value = groups.iter().fold(Vec3::ZERO, |sum, (_, splat)| sum + splat[index]);
+        let value = groups.iter().fold(Vec3::ZERO, |sum, (splat, _)| sum + splat[index]);
         let value = if value.is_finite() { value } else { Vec3::ZERO };
         Film::add(pixel, value);
         for c in 0..3 {
