@@ -131,9 +131,33 @@ impl Camera {
         if !(x >= 0.0 && y >= 0.0 && x < self.width as f32 && y < self.height as f32) {
             return None;
         }
-        let plane_area = 4.0 * aspect * tan_half_fov_y * tan_half_fov_y;
-        let importance = 1.0 / (plane_area * cos_eye * cos_eye * cos_eye * distance * distance);
+        let importance = self.direction_pdf_at(cos_eye) / (distance * distance);
         Some(EyeConnection { pixel: (x as u32, y as u32), to_eye, distance, importance })
+    }
+
+    /// Density per steradian with which [`ray`](Self::ray) at a uniform image point draws
+    /// `direction` (unit, from the eye): 1/(A·cos³θ), A the image plane's area at
+    /// distance 1; 0 outside the image.
+    pub fn direction_pdf(&self, direction: Vec3) -> f32 {
+        let cos_eye = direction.dot(self.forward);
+        if cos_eye <= 0.0 {
+            return 0.0;
+        }
+        let tan_half_fov_y = self.tan_half_fov_y();
+        let aspect = self.width as f32 / self.height as f32;
+        let (ndc_x, ndc_y) = (direction.dot(self.right) / cos_eye, direction.dot(self.up) / cos_eye);
+        if ndc_x.abs() > aspect * tan_half_fov_y || ndc_y.abs() > tan_half_fov_y {
+            return 0.0;
+        }
+        self.direction_pdf_at(cos_eye)
+    }
+
+    /// 1/(A·cos³θ) for a direction at cos θ = `cos_eye` from the view axis.
+    fn direction_pdf_at(&self, cos_eye: f32) -> f32 {
+        let tan_half_fov_y = self.tan_half_fov_y();
+        let aspect = self.width as f32 / self.height as f32;
+        let plane_area = 4.0 * aspect * tan_half_fov_y * tan_half_fov_y;
+        1.0 / (plane_area * cos_eye * cos_eye * cos_eye)
     }
 }
 
@@ -185,5 +209,29 @@ mod tests {
         let camera = Camera::look_at(Vec3::ZERO, Vec3::NEG_Z, Vec3::Y, 90.0, 100, 50).unwrap();
         let centre = camera.connect(Vec3::new(0.0, 0.0, -1.0)).unwrap();
         assert!((centre.importance - 1.0 / (4.0 * 2.0 * 1.0)).abs() < 1e-6, "{}", centre.importance);
+    }
+
+    #[test]
+    fn direction_pdf_integrates_to_one_over_the_sphere() {
+        let camera = Camera::look_at(Vec3::new(0.2, 1.0, 3.0), Vec3::ZERO, Vec3::Y, 60.0, 64, 48).unwrap();
+        // Midpoint rule over equal-area cells of the sphere (uniform in z and φ).
+        let (nz, nphi) = (1200, 2400);
+        let cell = 4.0 * std::f64::consts::PI / (nz * nphi) as f64;
+        let mut integral = 0.0f64;
+        for i in 0..nz {
+            let z = -1.0 + 2.0 * (i as f32 + 0.5) / nz as f32;
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            for j in 0..nphi {
+                let phi = 2.0 * std::f32::consts::PI * (j as f32 + 0.5) / nphi as f32;
+                integral += camera.direction_pdf(Vec3::new(r * phi.cos(), r * phi.sin(), z)) as f64 * cell;
+            }
+        }
+        assert!((integral - 1.0).abs() < 5e-3, "{integral}");
+        // A connection's importance is this density over the squared distance.
+        let ray = camera.ray(Vec2::new(10.3, 40.2));
+        let connection = camera.connect(ray.origin + ray.direction * 2.5).unwrap();
+        let expected = camera.direction_pdf(ray.direction) / (2.5 * 2.5);
+        assert!((connection.importance - expected).abs() <= 1e-4 * expected);
+        assert_eq!(camera.direction_pdf(-ray.direction), 0.0, "behind");
     }
 }

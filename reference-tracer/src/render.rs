@@ -13,7 +13,8 @@ use rayon::prelude::*;
 
 use crate::film::{Combine, Film};
 use crate::integrator::{
-    EnvironmentSampling, IntegratorSettings, LightSelection, PathCounters, PathScratch, PathTracer,
+    BidirectionalScratch, EnvironmentSampling, IntegratorSettings, LightSelection, PathCounters, PathScratch,
+    PathTracer,
 };
 use crate::output::Image;
 use crate::scene::Scene;
@@ -158,8 +159,9 @@ pub fn render<I: Intersector, G: Guide>(
     let mut training = Training::new(guided && settings.schedule == Schedule::Iterative, settings.training_share);
     // Passes traced so far, kept or not: each gets its own seed.
     let mut traced = 0u32;
-    // Light tracing's splat images and path recorders, one per group, kept across passes.
-    let mut light_groups: Vec<LightGroup<G::Region>> = Vec::new();
+    // Splat images and scratch space of light tracing and bdpt, one per group, kept
+    // across passes.
+    let mut splat_groups: Vec<SplatGroup<G::Region>> = Vec::new();
     loop {
         let pass = traced;
         traced += 1;
@@ -179,8 +181,8 @@ pub fn render<I: Intersector, G: Guide>(
         .with_guide_shares(guide_shares.as_deref())
         .with_gate(gate.as_deref());
         let pass_seed = pass_seed(settings.seed, pass);
-        let (counters, pass_sum) = if settings.integrator.method.traces_light() {
-            light_pass(&tracer, &mut film, &mut light_groups, pass_seed)
+        let (counters, pass_sum) = if settings.integrator.method.splats() {
+            splat_pass(&tracer, &mut film, &mut splat_groups, pass_seed)
         } else {
             camera_pass(&tracer, &mut film, pass_seed)
         };
@@ -294,37 +296,53 @@ fn camera_pass<I: Intersector, G: Guide>(
     })
 }
 
-/// Groups of light paths traced in parallel, each group into its own splat image; the
-/// images are summed in a fixed order, so a light-traced render is reproducible to the
-/// last bit whatever the thread count (which this also caps).
-const LIGHT_PATH_GROUPS: usize = 8;
+/// Groups of light paths (or bidirectional samples) traced in parallel, each group into
+/// its own splat image; the images are summed in a fixed order, so such a render is
+/// reproducible to the last bit whatever the thread count (which this also caps).
+const SPLAT_GROUPS: usize = 8;
 
-/// One group's splat image (a value per pixel, row by row) and the recorder its paths
-/// learn through.
-type LightGroup<R> = (Vec<Vec3>, PathRecorder<R>);
+/// One group's splat image (a value per pixel, row by row) and the scratch space its
+/// paths reuse: the recorder light paths learn through, the bidirectional subpaths.
+struct SplatGroup<R> {
+    splat: Vec<Vec3>,
+    recorder: PathRecorder<R>,
+    subpaths: BidirectionalScratch,
+}
 
-/// As many light paths as pixels, each splatting its camera connections; the summed
-/// splat image is added to `film` as one sample per pixel (a pixel's value is its
-/// splats times the pixel count over the paths traced: one here). `groups` holds the
-/// groups' buffers from pass to pass (made on the first).
-fn light_pass<I: Intersector, G: Guide>(
+/// As many light paths (or bidirectional samples, one per pixel) as pixels, each adding
+/// to its group's splat image; the summed image is added to `film` as one sample per
+/// pixel (a pixel's value is its splats times the pixel count over the light paths
+/// traced: one here). `groups` holds the groups' buffers from pass to pass (made on the
+/// first).
+fn splat_pass<I: Intersector, G: Guide>(
     tracer: &PathTracer<'_, I, G>,
     film: &mut Film,
-    groups: &mut Vec<LightGroup<G::Region>>,
+    groups: &mut Vec<SplatGroup<G::Region>>,
     pass_seed: u64,
 ) -> (PathCounters, [f64; 3]) {
     let pixels = film.pixels_mut().len();
-    let per_group = pixels.div_ceil(LIGHT_PATH_GROUPS);
-    groups.resize_with(LIGHT_PATH_GROUPS, || (vec![Vec3::ZERO; pixels], PathRecorder::new()));
+    let width = film.width();
+    let per_group = pixels.div_ceil(SPLAT_GROUPS);
+    let bidirectional = tracer.settings().method.bidirectional();
+    groups.resize_with(SPLAT_GROUPS, || SplatGroup {
+        splat: vec![Vec3::ZERO; pixels],
+        recorder: PathRecorder::new(),
+        subpaths: BidirectionalScratch::default(),
+    });
     let counters: Vec<PathCounters> = groups
         .par_iter_mut()
         .enumerate()
-        .map(|(group, (splat, recorder))| {
+        .map(|(group, SplatGroup { splat, recorder, subpaths })| {
             splat.fill(Vec3::ZERO);
             let mut counters = PathCounters::default();
             for path in group * per_group..((group + 1) * per_group).min(pixels) {
                 let mut rng = pixel_rng(pass_seed, path as u64);
-                tracer.light_path(&mut rng, splat, recorder, &mut counters);
+                if bidirectional {
+                    let pixel = ((path % width) as u32, (path / width) as u32);
+                    tracer.bidirectional_sample(pixel, &mut rng, splat, subpaths, &mut counters);
+                } else {
+                    tracer.light_path(&mut rng, splat, recorder, &mut counters);
+                }
             }
             counters
         })
@@ -332,7 +350,7 @@ fn light_pass<I: Intersector, G: Guide>(
     let counters = counters.into_iter().fold(PathCounters::default(), |sum, c| sum + c);
     let mut pass_sum = [0.0f64; 3];
     for (index, pixel) in film.pixels_mut().iter_mut().enumerate() {
-        let value = groups.iter().fold(Vec3::ZERO, |sum, (splat, _)| sum + splat[index]);
+        let value = groups.iter().fold(Vec3::ZERO, |sum, group| sum + group.splat[index]);
         let value = if value.is_finite() { value } else { Vec3::ZERO };
         Film::add(pixel, value);
         for c in 0..3 {

@@ -8,22 +8,10 @@ mod support;
 
 use guiding_core::{HemisphereGridSettings, SpatialDirectionalTreeSettings};
 use reference_tracer::integrator::{IntegratorSettings, Method};
-use reference_tracer::output::Image;
-use support::{assert_agree, mean_estimate, render_image, render_scheduled, repository_scene, settings, Schedule};
-
-/// Mean squared difference of two images relative to their mean, over pixels and
-/// channels.
-fn relative_difference(a: &Image, b: &Image) -> f64 {
-    let (mut sum, mut count) = (0.0, 0usize);
-    for (p, q) in a.pixels.iter().zip(&b.pixels) {
-        for c in 0..3 {
-            let mean = 0.5 * (p[c] + q[c]) as f64;
-            sum += ((p[c] - q[c]) as f64).powi(2) / (mean * mean + 1e-2);
-            count += 1;
-        }
-    }
-    sum / count as f64
-}
+use support::{
+    assert_agree, mean_estimate, quadrant_mean, relative_difference, render_image, render_scheduled, repository_scene,
+    settings, Schedule,
+};
 
 #[test]
 fn light_tracing_renders_cornell_as_nee_does() {
@@ -51,19 +39,6 @@ fn light_tracing_renders_cornell_as_nee_does() {
             assert!((a - b).abs() < 0.05 * b, "{label}, quadrant ({qx}, {qy}): {a} against nee's {b}");
         }
     }
-}
-
-/// The mean of one quadrant of an image (channels summed).
-fn quadrant_mean(image: &Image, qx: usize, qy: usize) -> f64 {
-    let (w, h) = (image.width, image.height);
-    let mut sum = 0.0;
-    for y in qy * h / 2..(qy + 1) * h / 2 {
-        for x in qx * w / 2..(qx + 1) * w / 2 {
-            let p = image.pixels[y * w + x];
-            sum += (p.x + p.y + p.z) as f64;
-        }
-    }
-    sum / (w * h / 4) as f64
 }
 
 #[test]
@@ -95,15 +70,7 @@ fn light_tracing_refuses_what_it_cannot_render() {
 /// light samples of nee do, weighed by the transmittance.
 #[test]
 fn light_tracing_sees_through_masks_as_nee_does() {
-    let cornell = repository_scene("cornell", 24, 24);
-    let mut json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&cornell).unwrap()).unwrap();
-    json["textures"] =
-        serde_json::json!({ "half": { "type": "checkerboard", "even": [0.5, 0.5, 0.5], "odd": [0.5, 0.5, 0.5] } });
-    json["materials"]["lace"] =
-        serde_json::json!({ "type": "diffuse", "albedo": [0.7, 0.7, 0.7], "opacity_texture": "half" });
-    json["shapes"][5]["material"] = "lace".into();
-    let folder = cornell.parent().unwrap();
-    let scene = support::write_scene(folder, &json);
+    let scene = support::masked_cornell(24, 24);
     let spp = 256;
     let (nee, nee_stats) = render_image(&scene, settings(Method::Nee), None, spp, 21);
     let (light, light_stats) = render_image(&scene, settings(Method::Light), None, spp, 22);

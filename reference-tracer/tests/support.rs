@@ -144,6 +144,47 @@ pub fn render_scheduled(
     prepared.render(&settings, |_| {}).unwrap()
 }
 
+/// Mean squared difference of two images relative to their mean, over pixels and
+/// channels.
+pub fn relative_difference(a: &Image, b: &Image) -> f64 {
+    let (mut sum, mut count) = (0.0, 0usize);
+    for (p, q) in a.pixels.iter().zip(&b.pixels) {
+        for c in 0..3 {
+            let mean = 0.5 * (p[c] + q[c]) as f64;
+            sum += ((p[c] - q[c]) as f64).powi(2) / (mean * mean + 1e-2);
+            count += 1;
+        }
+    }
+    sum / count as f64
+}
+
+/// The mean of one quadrant of an image (channels summed).
+pub fn quadrant_mean(image: &Image, qx: usize, qy: usize) -> f64 {
+    let (w, h) = (image.width, image.height);
+    let mut sum = 0.0;
+    for y in qy * h / 2..(qy + 1) * h / 2 {
+        for x in qx * w / 2..(qx + 1) * w / 2 {
+            let p = image.pixels[y * w + x];
+            sum += (p.x + p.y + p.z) as f64;
+        }
+    }
+    sum / (w * h / 4) as f64
+}
+
+/// Cornell with one box made of a lace that lets half the light through (a masked
+/// material, opacity 0.5 everywhere), at `width` × `height`.
+pub fn masked_cornell(width: u32, height: u32) -> PathBuf {
+    let cornell = repository_scene("cornell", width, height);
+    let mut json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&cornell).unwrap()).unwrap();
+    json["textures"] =
+        serde_json::json!({ "half": { "type": "checkerboard", "even": [0.5, 0.5, 0.5], "odd": [0.5, 0.5, 0.5] } });
+    json["materials"]["lace"] =
+        serde_json::json!({ "type": "diffuse", "albedo": [0.7, 0.7, 0.7], "opacity_texture": "half" });
+    json["shapes"][5]["material"] = "lace".into();
+    let folder = cornell.parent().unwrap();
+    write_scene(folder, &json)
+}
+
 pub fn settings(method: Method) -> IntegratorSettings {
     IntegratorSettings { method, ..Default::default() }
 }

@@ -190,18 +190,23 @@ impl Prepared {
         settings: &RenderSettings,
         mut on_pass: impl FnMut(&Progress<'_>),
     ) -> Result<(Image, RenderStatistics), String> {
-        if settings.integrator.method.traces_light() {
+        let method = settings.integrator.method;
+        if method.splats() {
+            let name = method.name();
             if self.device == Device::Gpu {
-                return Err("light: the GPU tracer has no light tracing (use --device cpu)".into());
+                return Err(format!("{name}: the GPU tracer has no light subpaths (use --device cpu)"));
             }
             if self.scene.environment.is_some() {
-                return Err("light: light paths start on area lights only, and this scene's environment \
-                            would be missing from the image (use nee)"
-                    .into());
+                return Err(format!(
+                    "{name}: light paths start on area lights only, and this scene's environment would be \
+                     missing from the image (use nee)"
+                ));
             }
             if self.scene.lights.is_empty() {
-                return Err("light: the scene has no area light to start light paths from".into());
+                return Err(format!("{name}: the scene has no area light to start light paths from"));
             }
+        }
+        if method.traces_light() {
             let delta = crate::plan::SceneFacts::of(&self.scene).delta_triangles;
             if delta > 0 {
                 return Err(format!(

@@ -67,6 +67,6 @@ pub(super) fn method_code(method: Method) -> u32 {
         Method::Guided => 2,
         Method::GuidedNee => 3,
         // Refused before the GPU is reached (`Prepared::render`).
-        Method::Light | Method::LightGuided => unreachable!("the GPU tracer has no light tracing"),
+        Method::Light | Method::LightGuided | Method::Bdpt => unreachable!("the GPU tracer has no light subpaths"),
     }
 }

@@ -22,7 +22,7 @@ use crate::material::{Material, ShadingFrame, Surface};
 /// previous vertex) to `to`: |from·n_s||to·n_g| / (|from·n_g||to·n_s|), which makes the
 /// adjoint BSDF of a shading-normal frame transport importance as the forward one
 /// transports radiance (1 where the shading normal is the geometric one).
-fn shading_correction(shading: &ShadingFrame, from: Vec3, to: Vec3) -> f32 {
+pub(super) fn shading_correction(shading: &ShadingFrame, from: Vec3, to: Vec3) -> f32 {
     let (ns, ng) = (shading.frame.normal, shading.geometric);
     let denominator = from.dot(ng).abs() * to.dot(ns).abs();
     if denominator <= 0.0 {
@@ -195,7 +195,7 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
     /// The share of light that passes from `point` (on a surface of normal `normal`) to the
     /// eye: 0 when something opaque blocks it, else the product of the masked surfaces'
     /// 1 − opacity on the way (as a light sample's shadow ray counts them).
-    fn eye_transmittance(
+    pub(super) fn eye_transmittance(
         &self,
         point: Vec3,
         normal: Vec3,
@@ -216,7 +216,13 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
 /// importance transport. Smooth refraction scales radiance by 1/η², but the power a
 /// light path carries passes unscaled, so the refracted weight is 1 there; shading
 /// normals get [`shading_correction`].
-fn importance_weight(material: &Material, shading: &ShadingFrame, from: Vec3, to: Vec3, weight: Vec3) -> Vec3 {
+pub(super) fn importance_weight(
+    material: &Material,
+    shading: &ShadingFrame,
+    from: Vec3,
+    to: Vec3,
+    weight: Vec3,
+) -> Vec3 {
     match material.surface {
         Surface::Dielectric { .. } => {
             let refracted = from.dot(shading.geometric) * to.dot(shading.geometric) < 0.0;
@@ -242,7 +248,7 @@ fn splat_into(splat: &mut [Vec3], width: usize, connection: &EyeConnection, valu
 }
 
 /// A cosine-distributed direction about +z from two uniforms.
-fn cosine_direction(u: Vec2) -> Vec3 {
+pub(super) fn cosine_direction(u: Vec2) -> Vec3 {
     let r = u.x.sqrt();
     let phi = 2.0 * std::f32::consts::PI * u.y;
     Vec3::new(r * phi.cos(), r * phi.sin(), (1.0 - u.x).max(0.0).sqrt())

@@ -16,12 +16,15 @@ pub enum Method {
     /// Light tracing guided by W, the importance learned from light paths by Eq. (1)
     /// with the roles of light and camera swapped.
     LightGuided,
+    /// Bidirectional path tracing: a camera and a light subpath per sample, joined in
+    /// every way, each strategy weighted by the power heuristic computed exactly.
+    Bdpt,
 }
 
 impl Method {
     /// Every method, in the order the command line lists them.
-    pub const ALL: [Method; 6] =
-        [Method::Pt, Method::Nee, Method::Guided, Method::GuidedNee, Method::Light, Method::LightGuided];
+    pub const ALL: [Method; 7] =
+        [Method::Pt, Method::Nee, Method::Guided, Method::GuidedNee, Method::Light, Method::LightGuided, Method::Bdpt];
 
     /// The command-line name.
     pub fn name(self) -> &'static str {
@@ -32,6 +35,7 @@ impl Method {
             Method::GuidedNee => "guided-nee",
             Method::Light => "light",
             Method::LightGuided => "light-guided",
+            Method::Bdpt => "bdpt",
         }
     }
 
@@ -53,6 +57,17 @@ impl Method {
     /// Whether paths start on the lights (light tracing).
     pub fn traces_light(self) -> bool {
         matches!(self, Method::Light | Method::LightGuided)
+    }
+
+    /// Whether each sample joins a camera subpath and a light subpath (bdpt).
+    pub fn bidirectional(self) -> bool {
+        matches!(self, Method::Bdpt)
+    }
+
+    /// Whether some of its samples land in other pixels than their own (connections
+    /// to the camera from light subpaths).
+    pub fn splats(self) -> bool {
+        self.traces_light() || self.bidirectional()
     }
 }
 

@@ -2,10 +2,13 @@
 //! with MIS), `guided` (Dahm & Keller's Fig. 2E: sample the guide with probability
 //! p_guide, else the BSDF, weighted by the one-sample MIS mixture pdf) and `guided-nee`
 //! (both, with light samples MIS-weighted against the mixture), and `light` (light
-//! tracing: paths from the area lights, each vertex connected to the camera). Guided
+//! tracing: paths from the area lights, each vertex connected to the camera), and `bdpt`
+//! (bidirectional: every strategy joining a camera and a light subpath, weighted by
+//! exact MIS). Guided
 //! paths also learn: after each path every vertex with a guide region is updated by
 //! Eq. (1).
 
+mod bidirectional;
 mod counters;
 mod direct;
 mod light_path;
@@ -14,6 +17,7 @@ mod path;
 mod settings;
 mod tracer;
 
+pub use bidirectional::{BidirectionalScratch, SubpathVertex};
 pub use counters::{PathCounters, TIMED_PATH_STRIDE};
 pub use method::{EnvironmentSampling, LightSelection, Method};
 pub use settings::IntegratorSettings;

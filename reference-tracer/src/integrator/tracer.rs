@@ -214,6 +214,11 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         }
     }
 
+    /// The settings it traces with.
+    pub fn settings(&self) -> &IntegratorSettings {
+        &self.settings
+    }
+
     /// The tracer with a next-event gate (used where the method estimates next-event
     /// light).
     pub fn with_gate(mut self, gate: Option<&'a NextEventGate>) -> Self {

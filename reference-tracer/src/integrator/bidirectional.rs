@@ -1,0 +1,587 @@
+//! Bidirectional path tracing (`bdpt`): per sample one camera subpath and one light
+//! subpath, and every way of joining them — s vertices from the light, t from the camera
+//! — evaluated. Each strategy is weighted by the power heuristic over all strategies
+//! that could have made the same path, computed exactly from every vertex's forward
+//! and reverse densities (Veach 1997, ch. 10, with pbrt-v3's ratio recursion). The
+//! strategies with one camera vertex (t = 1) splat into the pixel they land in, as light
+//! tracing does; s = 1 draws a fresh point on a light (next-event estimation); s = 0 is
+//! a camera subpath that reaches an emitter.
+//!
+//! Lights are picked by power on both sides, whatever `--light-selection` says: the
+//! light subpath's origin and next-event estimation must share one density for the
+//! weights to be exact.
+
+use glam::Vec3;
+use guiding_core::{Frame, Guide, Intersector, Pcg32, Ray};
+
+use super::counters::PathCounters;
+use super::light_path::{cosine_direction, importance_weight, shading_correction};
+use super::tracer::PathTracer;
+use crate::material::{Material, ShadingFrame};
+
+/// What a subpath vertex is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum VertexKind {
+    /// The pinhole.
+    Camera,
+    /// A point on an area light, where a light subpath starts.
+    Light,
+    /// A surface a subpath reached.
+    Surface,
+}
+
+/// One vertex of a camera or light subpath.
+#[derive(Clone, Copy, Debug)]
+pub struct SubpathVertex {
+    kind: VertexKind,
+    point: Vec3,
+    /// The geometric normal (a light's emitting side; unused at the camera).
+    normal: Vec3,
+    /// Unit direction to the previous vertex of its own subpath (surfaces).
+    wo: Vec3,
+    /// A surface's material and shading frame (seen from `wo`).
+    surface: Option<(Material, ShadingFrame)>,
+    /// The light it lies on (light vertices, and emitters a camera subpath reached).
+    light: Option<u32>,
+    /// The subpath's throughput up to this vertex: radiance weight from the camera,
+    /// power weight from the light (emitted radiance over the densities so far).
+    beta: Vec3,
+    /// Density per unit area (at this vertex) with which its own subpath reached it.
+    pdf_fwd: f32,
+    /// Density per unit area with which the other subpath's sampling would reach it
+    /// from the next vertex of its own subpath.
+    pdf_rev: f32,
+    /// Whether the direction sampled here came from a delta lobe.
+    delta: bool,
+}
+
+impl SubpathVertex {
+    fn new(kind: VertexKind, point: Vec3, normal: Vec3, beta: Vec3, pdf_fwd: f32) -> Self {
+        Self {
+            kind,
+            point,
+            normal,
+            wo: Vec3::ZERO,
+            surface: None,
+            light: None,
+            beta,
+            pdf_fwd,
+            pdf_rev: 0.0,
+            delta: false,
+        }
+    }
+
+    /// Whether a connection may end here (a surface whose lobes are not all delta, or
+    /// the camera, or a light).
+    fn connectible(&self) -> bool {
+        match self.kind {
+            VertexKind::Surface => self.surface.is_some_and(|(material, _)| !material.is_delta()),
+            VertexKind::Camera | VertexKind::Light => true,
+        }
+    }
+
+    /// A density per steradian of leaving this vertex towards `next`, as a density per
+    /// unit area at `next` (the cosine there, except at the camera, which is no surface).
+    fn area_density(&self, pdf_dir: f32, next: &SubpathVertex) -> f32 {
+        let offset = next.point - self.point;
+        let distance2 = offset.length_squared();
+        if !distance2.is_finite() || distance2 <= 0.0 {
+            return 0.0;
+        }
+        let mut pdf = pdf_dir / distance2;
+        if next.kind != VertexKind::Camera {
+            pdf *= (next.normal.dot(offset) / distance2.sqrt()).abs();
+        }
+        pdf
+    }
+
+    /// The radiance a camera subpath's emitter sends back along `wo` (zero elsewhere).
+    fn emitted(&self) -> Vec3 {
+        match self.surface {
+            Some((material, _)) if self.normal.dot(self.wo) > 0.0 => material.emission,
+            _ => Vec3::ZERO,
+        }
+    }
+}
+
+/// Per-thread space for the two subpaths (reused from sample to sample).
+#[derive(Clone, Debug, Default)]
+pub struct BidirectionalScratch {
+    camera: Vec<SubpathVertex>,
+    light: Vec<SubpathVertex>,
+}
+
+/// The power heuristic's term for one strategy ratio: (p_other / p_this)² with zero
+/// densities (delta lobes) counted as 1, as they cancel between strategies.
+fn ratio_squared(reverse: f32, forward: f32) -> f32 {
+    let remap = |p: f32| if p != 0.0 { p } else { 1.0 };
+    let ratio = remap(reverse) / remap(forward);
+    ratio * ratio
+}
+
+impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
+    /// One bidirectional sample for pixel (`x`, `y`): its camera strategies are added to
+    /// `image` at that pixel, its light-tracing strategies (t = 1) where they land.
+    /// Every entry of `image` is a contribution to its pixel's value, the light ones for
+    /// as many light subpaths as pixels (one per sample).
+    pub fn bidirectional_sample(
+        &self,
+        (x, y): (u32, u32),
+        rng: &mut Pcg32,
+        image: &mut [Vec3],
+        scratch: &mut BidirectionalScratch,
+        counters: &mut PathCounters,
+    ) {
+        counters.paths += 1;
+        let BidirectionalScratch { camera, light } = scratch;
+        self.camera_subpath(x, y, rng, camera, counters);
+        self.light_subpath(rng, light, counters);
+        let width = self.scene.camera.width as usize;
+        let pixel = y as usize * width + x as usize;
+        let max_edges = self.settings.max_depth as usize;
+        let mut contributed = false;
+        for t in 1..=camera.len() {
+            for s in 0..=light.len() {
+                let edges = s + t - 1;
+                if (t == 1 && s <= 1) || edges > max_edges {
+                    continue;
+                }
+                let Some((value, sampled, splat_pixel)) = self.connect(camera, light, s, t, rng, counters) else {
+                    continue;
+                };
+                let weight = self.mis_weight(camera, light, sampled.as_ref(), s, t);
+                let value = value * weight;
+                if !(value.is_finite() && value.max_element() > 0.0) {
+                    continue;
+                }
+                let index = splat_pixel.map_or(pixel, |(px, py)| py as usize * width + px as usize);
+                image[index] += value;
+                contributed = true;
+            }
+        }
+        if contributed {
+            counters.nonzero_paths += 1;
+        }
+    }
+
+    /// The camera subpath through pixel (`x`, `y`): the eye, then up to `max_depth`
+    /// surfaces.
+    fn camera_subpath(
+        &self,
+        x: u32,
+        y: u32,
+        rng: &mut Pcg32,
+        path: &mut Vec<SubpathVertex>,
+        counters: &mut PathCounters,
+    ) {
+        path.clear();
+        let ray = self.camera_ray(x, y, rng);
+        let camera = &self.scene.camera;
+        let (_, forward, ..) = camera.basis();
+        path.push(SubpathVertex::new(VertexKind::Camera, ray.origin, forward, Vec3::ONE, 1.0));
+        self.random_walk(ray, Vec3::ONE, false, rng, path, counters);
+    }
+
+    /// The light subpath: a point on a light picked by power, uniform on it, leaving by
+    /// the cosine about its normal; then up to `max_depth − 1` surfaces.
+    fn light_subpath(&self, rng: &mut Pcg32, path: &mut Vec<SubpathVertex>, counters: &mut PathCounters) {
+        path.clear();
+        let lights = &self.scene.lights;
+        if lights.is_empty() {
+            return;
+        }
+        let (light, selection) = lights.select_by_power(rng.next_f32());
+        let (_, emission, area) = lights.light(light);
+        let Some((origin, normal)) = lights.emission_point(light, rng.next_vec2()) else { return };
+        let position_pdf = selection / area;
+        if !(position_pdf > 0.0 && normal != Vec3::ZERO) {
+            return;
+        }
+        let mut start = SubpathVertex::new(VertexKind::Light, origin, normal, emission / position_pdf, position_pdf);
+        start.light = Some(light);
+        path.push(start);
+        let direction = Frame::from_normal(normal).to_world(cosine_direction(rng.next_vec2()));
+        let cos_light = direction.dot(normal);
+        let pdf_dir = cos_light * std::f32::consts::FRAC_1_PI;
+        if !(cos_light > 0.0 && pdf_dir > 0.0) {
+            return;
+        }
+        let beta = emission * (cos_light / (position_pdf * pdf_dir));
+        let ray = Ray::new(self.spawn(origin, normal, direction), direction);
+        self.random_walk(ray, beta, true, rng, path, counters);
+    }
+
+    /// Extends `path` (which holds its first vertex) along `ray` by BSDF sampling, up to
+    /// `max_depth` + 1 vertices from the camera and `max_depth` from a light (so that
+    /// no strategy makes a path of more than `max_depth` segments), recording each vertex's forward density and its predecessor's
+    /// reverse one. `importance`: the subpath carries importance from the light side
+    /// (adjoint shading-normal correction, refraction unscaled).
+    ///
+    /// Both densities are evaluated between the vertices where they lie, not taken from
+    /// the sampler: a ray leaves its surface from a point offset along the normal, so the
+    /// sampled direction differs slightly from the one between the vertices, and only
+    /// densities of the same geometry make the strategies' weights sum to one exactly.
+    fn random_walk(
+        &self,
+        mut ray: Ray,
+        mut beta: Vec3,
+        importance: bool,
+        rng: &mut Pcg32,
+        path: &mut Vec<SubpathVertex>,
+        counters: &mut PathCounters,
+    ) {
+        let max_vertices = self.settings.max_depth as usize + usize::from(!importance);
+        // Russian roulette by the throughput relative to the subpath's start.
+        let mut relative = Vec3::ONE;
+        while path.len() < max_vertices {
+            counters.rays += 1;
+            let Some((hit, material)) = self.next_surface(ray, rng, counters) else { break };
+            counters.vertices += 1;
+            let surface = self.interaction(&hit, material, ray.direction);
+            let mut vertex =
+                SubpathVertex::new(VertexKind::Surface, surface.point, surface.geometric_normal, beta, 0.0);
+            vertex.wo = surface.wo;
+            vertex.surface = Some((surface.material, surface.shading));
+            if surface.material.is_emissive() {
+                vertex.light = self.scene.lights.light_at(hit.primitive, hit.barycentrics);
+            }
+            let k = path.len();
+            let previous = path[k - 1];
+            if !previous.delta {
+                let before = k.checked_sub(2).map(|i| path[i]);
+                vertex.pdf_fwd = self.density_towards(&previous, before.as_ref(), &vertex);
+                if let Some(before) = before {
+                    path[k - 2].pdf_rev = self.density_towards(&previous, Some(&vertex), &before);
+                }
+            }
+            path.push(vertex);
+            if path.len() >= max_vertices {
+                break;
+            }
+            if path.len() > self.settings.rr_depth as usize {
+                let survival = relative.max_element().min(0.95);
+                if survival <= 0.0 || rng.next_f32() >= survival {
+                    break;
+                }
+                beta /= survival;
+                relative /= survival;
+            }
+            let (u, u_lobe) = (rng.next_vec2(), rng.next_f32());
+            let (material, shading, wo) = (&surface.material, &surface.shading, surface.wo);
+            let Some(sample) = material.sample(shading, wo, u, u_lobe) else { break };
+            let factor = if importance {
+                importance_weight(material, shading, wo, sample.wi, sample.weight)
+            } else {
+                sample.weight
+            };
+            if !(factor.is_finite() && factor.max_element() > 0.0) {
+                break;
+            }
+            beta *= factor;
+            relative *= factor;
+            path[k].delta = material.is_delta();
+            ray = Ray::new(self.spawn(surface.point, surface.geometric_normal, sample.wi), sample.wi);
+        }
+    }
+
+    /// The unweighted contribution of strategy (s, t), the light vertex it drew (s = 1)
+    /// and the pixel it lands in when that is not the sample's own (t = 1).
+    #[allow(clippy::type_complexity)]
+    fn connect(
+        &self,
+        camera: &[SubpathVertex],
+        light: &[SubpathVertex],
+        s: usize,
+        t: usize,
+        rng: &mut Pcg32,
+        counters: &mut PathCounters,
+    ) -> Option<(Vec3, Option<SubpathVertex>, Option<(u32, u32)>)> {
+        if s == 0 {
+            // The camera subpath reached an emitter.
+            let pt = &camera[t - 1];
+            let emitted = pt.emitted();
+            return (emitted.max_element() > 0.0).then_some((pt.beta * emitted, None, None));
+        }
+        if t == 1 {
+            // A light vertex seen by the camera.
+            let qs = &light[s - 1];
+            let (material, shading) = qs.surface.filter(|_| qs.connectible())?;
+            let connection = self.scene.camera.connect(qs.point)?;
+            let f = material.eval(&shading, qs.wo, connection.to_eye)
+                * shading_correction(&shading, qs.wo, connection.to_eye);
+            if f.max_element() <= 0.0 {
+                return None;
+            }
+            let visible = self.eye_transmittance(qs.point, qs.normal, &connection, counters);
+            let value = qs.beta * f * (visible * connection.importance);
+            return (visible > 0.0).then_some((value, None, Some(connection.pixel)));
+        }
+        let pt = &camera[t - 1];
+        let (camera_material, camera_shading) = pt.surface.filter(|_| pt.connectible())?;
+        if s == 1 {
+            // Next-event estimation: a fresh point on a light picked by power.
+            let lights = &self.scene.lights;
+            let (index, selection) = lights.select_by_power(rng.next_f32());
+            let (_, emission, area) = lights.light(index);
+            let (point, normal) = lights.emission_point(index, rng.next_vec2())?;
+            let position_pdf = selection / area;
+            let offset = point - pt.point;
+            let distance2 = offset.length_squared();
+            let wi = offset / distance2.sqrt();
+            let cos_light = -normal.dot(wi);
+            if !(position_pdf > 0.0 && cos_light > 0.0 && distance2 > 0.0) {
+                return None;
+            }
+            let f = camera_material.eval(&camera_shading, pt.wo, wi);
+            if f.max_element() <= 0.0 {
+                return None;
+            }
+            let visible = self.segment_transmittance(pt, point, counters);
+            let value = pt.beta * f * emission * (visible * cos_light / (distance2 * position_pdf));
+            let mut sampled =
+                SubpathVertex::new(VertexKind::Light, point, normal, emission / position_pdf, position_pdf);
+            sampled.light = Some(index);
+            return (visible > 0.0).then_some((value, Some(sampled), None));
+        }
+        // Two surfaces joined by a shadow ray.
+        let qs = &light[s - 1];
+        let (light_material, light_shading) = qs.surface.filter(|_| qs.connectible())?;
+        let offset = qs.point - pt.point;
+        let distance2 = offset.length_squared();
+        if !distance2.is_finite() || distance2 <= 0.0 {
+            return None;
+        }
+        let wi = offset / distance2.sqrt();
+        let f_camera = camera_material.eval(&camera_shading, pt.wo, wi);
+        let f_light = light_material.eval(&light_shading, qs.wo, -wi) * shading_correction(&light_shading, qs.wo, -wi);
+        if f_camera.max_element() <= 0.0 || f_light.max_element() <= 0.0 {
+            return None;
+        }
+        let visible = self.segment_transmittance(pt, qs.point, counters);
+        let value = pt.beta * f_camera * f_light * qs.beta * (visible / distance2);
+        (visible > 0.0).then_some((value, None, None))
+    }
+
+    /// The share of light passing between surface vertex `from` and `to` (masks
+    /// weighed; 0 when blocked), stopping short of both ends by the spawn offset.
+    fn segment_transmittance(&self, from: &SubpathVertex, to: Vec3, counters: &mut PathCounters) -> f32 {
+        let offset = to - from.point;
+        let distance = offset.length();
+        let wi = offset / distance;
+        let origin = self.spawn(from.point, from.normal, wi);
+        let margin = self.epsilon_at(from.point) + self.epsilon_at(to);
+        let t_max = (distance - margin).max(0.0) * (1.0 - 1e-5);
+        counters.rays += 1;
+        self.transmittance(Ray::segment(origin, wi, 0.0, t_max), counters)
+    }
+
+    /// Density per unit area at `next` of `vertex` scattering (or emitting, or looking)
+    /// towards it, having been reached from `previous` (surfaces only).
+    fn density_towards(&self, vertex: &SubpathVertex, previous: Option<&SubpathVertex>, next: &SubpathVertex) -> f32 {
+        let offset = next.point - vertex.point;
+        let distance = offset.length();
+        if !distance.is_finite() || distance <= 0.0 {
+            return 0.0;
+        }
+        let wi = offset / distance;
+        let pdf_dir = match vertex.kind {
+            VertexKind::Camera => self.scene.camera.direction_pdf(wi),
+            VertexKind::Light => self.emission_direction_pdf(vertex, wi),
+            VertexKind::Surface => match (vertex.surface, previous) {
+                (Some((material, shading)), Some(previous)) => {
+                    let wo = (previous.point - vertex.point).normalize_or_zero();
+                    material.pdf(&shading, wo, wi)
+                }
+                _ => 0.0,
+            },
+        };
+        vertex.area_density(pdf_dir, next)
+    }
+
+    /// Density per steradian of a light subpath leaving emitter point `vertex` along
+    /// `wi` (cosine about its front normal).
+    fn emission_direction_pdf(&self, vertex: &SubpathVertex, wi: Vec3) -> f32 {
+        vertex.normal.dot(wi).max(0.0) * std::f32::consts::FRAC_1_PI
+    }
+
+    /// Density per unit area with which a light subpath starts at emitter `vertex`.
+    fn light_origin_pdf(&self, vertex: &SubpathVertex) -> f32 {
+        let lights = &self.scene.lights;
+        vertex.light.map_or(0.0, |light| lights.power_probability(light) / lights.light(light).2)
+    }
+
+    /// Strategy (s, t)'s power-heuristic weight among all strategies that make the same
+    /// path: 1 / Σ_k (p_k / p_(s,t))², the density ratios built up vertex by vertex
+    /// outwards from the connection; `sampled` is the light vertex s = 1 drew.
+    fn mis_weight(
+        &self,
+        camera: &[SubpathVertex],
+        light: &[SubpathVertex],
+        sampled: Option<&SubpathVertex>,
+        s: usize,
+        t: usize,
+    ) -> f32 {
+        if s + t == 2 {
+            return 1.0;
+        }
+        let qs = if s == 1 { sampled } else { s.checked_sub(1).map(|i| &light[i]) };
+        let pt = &camera[t - 1];
+        let pt_minus = t.checked_sub(2).map(|i| &camera[i]);
+        let qs_minus = s.checked_sub(2).map(|i| &light[i]);
+        // The reverse densities the connection gives the vertices on both sides of it
+        // (the stored ones are for each subpath's own continuation).
+        let pt_reverse = match qs {
+            Some(qs) => self.density_towards(qs, qs_minus, pt),
+            None => self.light_origin_pdf(pt),
+        };
+        let pt_minus_reverse = pt_minus.map_or(0.0, |pm| match qs {
+            Some(qs) => self.density_towards(pt, Some(qs), pm),
+            None => {
+                let offset = pm.point - pt.point;
+                pt.area_density(self.emission_direction_pdf(pt, offset.normalize_or_zero()), pm)
+            }
+        });
+        let qs_reverse = qs.map_or(0.0, |qs| self.density_towards(pt, pt_minus, qs));
+        let qs_minus_reverse = match (qs, qs_minus) {
+            (Some(qs), Some(qm)) => self.density_towards(qs, Some(pt), qm),
+            _ => 0.0,
+        };
+        let mut sum = 0.0f32;
+        let mut ratio = 1.0f32;
+        for i in (1..t).rev() {
+            let reverse = if i == t - 1 {
+                pt_reverse
+            } else if i + 2 == t {
+                pt_minus_reverse
+            } else {
+                camera[i].pdf_rev
+            };
+            ratio *= ratio_squared(reverse, camera[i].pdf_fwd);
+            let delta_here = i != t - 1 && camera[i].delta;
+            if !delta_here && !camera[i - 1].delta {
+                sum += ratio;
+            }
+        }
+        ratio = 1.0;
+        for i in (0..s).rev() {
+            let vertex = if s == 1 { qs.copied().unwrap_or(light[0]) } else { light[i] };
+            let reverse = if i == s - 1 {
+                qs_reverse
+            } else if i + 2 == s {
+                qs_minus_reverse
+            } else {
+                light[i].pdf_rev
+            };
+            ratio *= ratio_squared(reverse, vertex.pdf_fwd);
+            let delta_here = i != s - 1 && light[i].delta;
+            let delta_before = i > 0 && light[i - 1].delta;
+            if !delta_here && !delta_before {
+                sum += ratio;
+            }
+        }
+        1.0 / (1.0 + sum)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use guiding_core::HemisphereGrid;
+
+    use super::*;
+    use crate::integrator::{IntegratorSettings, Method};
+    use crate::scene::Scene;
+    use crate::scene_intersector::{IntersectorChoice, SceneIntersector};
+
+    fn repository_scene(name: &str) -> Scene {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../scenes/{name}/scene.json"));
+        let scene = Scene::from_json(&path, &std::fs::read_to_string(&path).unwrap()).unwrap();
+        Scene { camera: scene.camera.with_resolution(16, 16), ..scene }
+    }
+
+    /// The light-side view of camera vertices `path[from..]` traversed backwards: the
+    /// emitter at the end becomes the light subpath's origin, and every density is what
+    /// a light subpath's sampling (forward) and a camera subpath's (reverse) give it.
+    fn reversed<I: Intersector, G: Guide>(
+        tracer: &PathTracer<'_, I, G>,
+        path: &[SubpathVertex],
+        from: usize,
+    ) -> Vec<SubpathVertex> {
+        let mut light: Vec<SubpathVertex> = path[from..].iter().rev().copied().collect();
+        light[0].kind = VertexKind::Light;
+        light[0].pdf_fwd = tracer.light_origin_pdf(&light[0]);
+        for j in 1..light.len() {
+            light[j].wo = (light[j - 1].point - light[j].point).normalize();
+        }
+        for j in 1..light.len() {
+            let previous = (j >= 2).then(|| light[j - 2]);
+            light[j].pdf_fwd = tracer.density_towards(&light[j - 1], previous.as_ref(), &light[j]);
+        }
+        // Reverse densities come from the camera side: the vertex after j, reached from
+        // the one after that (the last two the connection gives their own).
+        for j in 0..light.len().saturating_sub(2) {
+            let (next, after) = (light[j + 1], light[j + 2]);
+            light[j].pdf_rev = tracer.density_towards(&next, Some(&after), &light[j]);
+        }
+        light
+    }
+
+    /// Over random camera subpaths that reach the light, every way of cutting the path
+    /// into a light and a camera part (s + t = its vertex count) that joins two
+    /// vertices a connection can end at gets a weight, and the weights sum to one: the
+    /// estimator counts each path exactly once. Cornell (diffuse) and glossy (mirrors,
+    /// glass and rough metal).
+    #[test]
+    fn mis_weights_of_every_path_sum_to_one() {
+        for name in ["cornell", "glossy"] {
+            weights_sum_to_one(&repository_scene(name), name);
+        }
+    }
+
+    fn weights_sum_to_one(scene: &Scene, name: &str) {
+        let intersector = SceneIntersector::build(&scene.triangles, IntersectorChoice::default()).unwrap();
+        let settings = IntegratorSettings { method: Method::Bdpt, max_depth: 8, rr_depth: 64, ..Default::default() };
+        let tracer: PathTracer<'_, _, HemisphereGrid> =
+            PathTracer::new(scene, &intersector, None, None, None, None, settings);
+        let mut counters = PathCounters::default();
+        let mut camera = Vec::new();
+        let (mut checked, mut through_delta) = (0, 0);
+        for seed in 0..40_000u64 {
+            let mut rng = Pcg32::new(seed, 7);
+            tracer.camera_subpath((seed % 16) as u32, (seed / 16 % 16) as u32, &mut rng, &mut camera, &mut counters);
+            // The first emitter the camera subpath reached, seen from its front.
+            let Some(end) = camera.iter().position(|v| v.emitted().max_element() > 0.0) else { continue };
+            if end < 2 {
+                continue;
+            }
+            let vertices = end + 1;
+            let mut sum = 0.0f64;
+            for s in 0..vertices {
+                let t = vertices - s;
+                // A connection cannot end at a delta vertex.
+                let joins_delta = camera[t - 1].delta || (s > 0 && camera[t].delta);
+                if s == 1 && t == 1 || joins_delta {
+                    continue;
+                }
+                let mut light = if s == 0 { Vec::new() } else { reversed(&tracer, &camera[..vertices], t) };
+                let sampled = (s == 1).then(|| light[0]);
+                // The reverse densities next to the connection belong to each subpath's
+                // own continuation, which a real light subpath does not share: the
+                // weight must compute them, never read them.
+                let mut camera_part = camera[..t].to_vec();
+                for vertex in camera_part.iter_mut().rev().take(2).chain(light.iter_mut().rev().take(2)) {
+                    vertex.pdf_rev = f32::NAN;
+                }
+                sum += tracer.mis_weight(&camera_part, &light, sampled.as_ref(), s, t) as f64;
+            }
+            assert!((sum - 1.0).abs() < 1e-4, "{name}, seed {seed}: {vertices} vertices, weights sum to {sum}");
+            checked += 1;
+            through_delta += camera[..end].iter().any(|v| v.delta) as u32;
+        }
+        assert!(checked > 200, "{name}: only {checked} paths reached the light");
+        if name == "glossy" {
+            assert!(through_delta > 20, "{name}: only {through_delta} paths met a mirror or glass");
+        }
+    }
+}
