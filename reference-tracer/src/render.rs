@@ -179,7 +179,8 @@ pub fn render<I: Intersector, G: Guide>(
             integrator,
         )
         .with_guide_shares(guide_shares.as_deref())
-        .with_gate(gate.as_deref());
+        .with_gate(gate.as_deref())
+        .with_connection_threshold(settings.integrator.connection_roulette * mean_luminance(&statistics.pass_means));
         let pass_seed = pass_seed(settings.seed, pass);
         let (counters, pass_sum) = if settings.integrator.method.splats() {
             splat_pass(&tracer, &mut film, &mut splat_groups, pass_seed)
@@ -260,6 +261,15 @@ pub fn render<I: Intersector, G: Guide>(
     (film.image(), statistics)
 }
 
+/// The mean luminance of the passes' images so far (0 before the first).
+fn mean_luminance(pass_means: &[[f64; 3]]) -> f32 {
+    if pass_means.is_empty() {
+        return 0.0;
+    }
+    let sum = pass_means.iter().fold(Vec3::ZERO, |sum, m| sum + Vec3::new(m[0] as f32, m[1] as f32, m[2] as f32));
+    crate::color::luminance(sum / pass_means.len() as f32)
+}
+
 /// One camera path per pixel, added to `film`; the pass's counters and radiance sum.
 fn camera_pass<I: Intersector, G: Guide>(
     tracer: &PathTracer<'_, I, G>,
@@ -306,7 +316,7 @@ const SPLAT_GROUPS: usize = 8;
 struct SplatGroup<R> {
     splat: Vec<Vec3>,
     recorder: PathRecorder<R>,
-    subpaths: BidirectionalScratch,
+    subpaths: BidirectionalScratch<R>,
 }
 
 /// As many light paths (or bidirectional samples, one per pixel) as pixels, each adding

@@ -4,27 +4,46 @@
 //! standard errors and, quadrant by quadrant, within a few per cent (a splat in the
 //! wrong pixel, a wrong weight or a density left out shows there). That the weights of
 //! every path sum to one is checked beside the integrator
-//! (`integrator::bidirectional::tests`).
+//! (`integrator::bidirectional::tests`), guided and unguided.
 
 mod support;
 
-use reference_tracer::integrator::Method;
+use guiding_core::{HemisphereGridSettings, SpatialDirectionalTreeSettings};
+use reference_tracer::directional_guide::DirectionalGuideSettings;
+use reference_tracer::integrator::{IntegratorSettings, Method};
 use support::{
-    assert_agree, mean_estimate, quadrant_mean, relative_difference, render_image, repository_scene, settings,
+    assert_agree, mean_estimate, quadrant_mean, relative_difference, render_image, render_scheduled, repository_scene,
+    settings, Schedule,
 };
 
 /// Renders `scene` with nee twice and bdpt once; bdpt must agree with nee as well as
 /// nee agrees with itself, up to `slack` times its pixel noise.
 fn agrees_with_nee(label: &str, scene: &std::path::Path, spp: u32) {
+    agrees_with_nee_as(label, scene, spp, settings(Method::Bdpt));
+}
+
+fn agrees_with_nee_as(label: &str, scene: &std::path::Path, spp: u32, bdpt_settings: IntegratorSettings) {
+    agrees_with_nee_guided(label, scene, spp, bdpt_settings, None);
+}
+
+/// [`agrees_with_nee_as`] with a directional guide, learned on the iterative schedule.
+fn agrees_with_nee_guided(
+    label: &str,
+    scene: &std::path::Path,
+    spp: u32,
+    bdpt_settings: IntegratorSettings,
+    guide: Option<DirectionalGuideSettings>,
+) {
     let (nee, nee_stats) = render_image(scene, settings(Method::Nee), None, spp, 31);
     let (again, _) = render_image(scene, settings(Method::Nee), None, spp, 32);
     let noise = relative_difference(&nee, &again);
-    let (bdpt, bdpt_stats) = render_image(scene, settings(Method::Bdpt), None, spp, 33);
+    let (bdpt, bdpt_stats) = render_scheduled(scene, bdpt_settings, guide, spp, 33, Schedule::Iterative);
     assert_agree(label, &mean_estimate(&bdpt_stats), &mean_estimate(&nee_stats));
     // bdpt is the less noisy per pixel (it has nee among its strategies), so its
-    // difference from nee is at most nee's own.
+    // difference from nee is at most nee's own (roulette adds noise of its own).
     let difference = relative_difference(&bdpt, &nee);
-    assert!(difference < 1.5 * noise, "{label}: bdpt against nee {difference:.3e}, nee against nee {noise:.3e}");
+    let slack = if bdpt_settings.connection_roulette > 0.0 { 3.0 } else { 1.5 };
+    assert!(difference < slack * noise, "{label}: bdpt against nee {difference:.3e}, nee against nee {noise:.3e}");
     for (qx, qy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
         let (a, b) = (quadrant_mean(&bdpt, qx, qy), quadrant_mean(&nee, qx, qy));
         assert!((a - b).abs() < 0.05 * b, "{label}, quadrant ({qx}, {qy}): bdpt {a} against nee's {b}");
@@ -44,6 +63,28 @@ fn bdpt_sees_through_masks_as_nee_does() {
 #[test]
 fn bdpt_renders_glass_and_mirrors_as_nee_does() {
     agrees_with_nee("glossy", &repository_scene("glossy", 24, 24), 512);
+}
+
+/// Connection roulette traces faint connections by chance and weighs them up: noisier,
+/// never biased.
+#[test]
+fn bdpt_with_connection_roulette_renders_cornell_as_nee_does() {
+    let roulette = IntegratorSettings { connection_roulette: 1.0, ..settings(Method::Bdpt) };
+    agrees_with_nee_as("cornell, connection roulette 1", &repository_scene("cornell", 24, 24), 256, roulette);
+}
+
+/// bdpt-guided: camera subpaths guided by Q (a hemisphere grid, a spatial × directional
+/// tree) learned from them; the guided densities enter every weight.
+#[test]
+fn guided_bdpt_renders_cornell_and_glossy_as_nee_does() {
+    let grid = HemisphereGridSettings { probe_count: Some(40), ..Default::default() };
+    let guided = IntegratorSettings { guide_probability: 0.5, ..settings(Method::BdptGuided) };
+    let cornell = repository_scene("cornell", 24, 24);
+    agrees_with_nee_guided("cornell, bdpt-guided grid", &cornell, 256, guided, Some(grid.into()));
+    let tree = SpatialDirectionalTreeSettings::default();
+    agrees_with_nee_guided("cornell, bdpt-guided tree", &cornell, 256, guided, Some(tree.into()));
+    let glossy = repository_scene("glossy", 24, 24);
+    agrees_with_nee_guided("glossy, bdpt-guided grid", &glossy, 512, guided, Some(grid.into()));
 }
 
 #[test]

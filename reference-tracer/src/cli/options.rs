@@ -211,6 +211,14 @@ pub struct TraceOptions {
     /// at `without_nee_defaults` in cli/settings.rs). The GPU tracer has none.
     #[arg(long, value_parser = parse_switch)]
     pub(super) nee_kickstart: Option<bool>,
+    /// bdpt: trace a connection's shadow ray only with probability c / (this × the image's
+    /// mean luminance so far) where its unblocked, unweighted contribution c is fainter
+    /// than that, counting it by the inverse (unbiased); 0 traces them all. Default 0: it
+    /// pays only where the image is dark against its lights. 20 s, seed 41, relMSE: door
+    /// 160×120 0 → 1.66e-2, 0.5 → 1.65e-2, 2 → 1.60e-2, 10 → 1.43e-2, 50 → 1.62e-2 (rays
+    /// per sample 38.4 → 21.7 at 10); cornell 128² 0 → 1.12e-4, 10 → 2.56e-3.
+    #[arg(long, default_value_t = crate::integrator::DEFAULT_CONNECTION_ROULETTE, value_parser = parse_non_negative)]
+    pub(super) connection_roulette: f32,
     /// Guided methods: seconds of training passes whose samples are discarded (their
     /// time counts towards --seconds).
     #[arg(long, default_value_t = 0.0)]
@@ -354,8 +362,9 @@ pub(super) fn parse_light_rule(s: &str) -> Result<LightUpdateRule, String> {
 }
 
 pub(super) fn parse_method(s: &str) -> Result<Method, String> {
-    Method::from_name(s)
-        .ok_or_else(|| format!("unknown integrator `{s}` (pt, nee, guided, guided-nee, light, light-guided)"))
+    Method::from_name(s).ok_or_else(|| {
+        format!("unknown integrator `{s}` (pt, nee, guided, guided-nee, light, light-guided, bdpt, bdpt-guided)")
+    })
 }
 
 pub(super) fn parse_learning_rate(s: &str) -> Result<LearningRate, String> {
@@ -403,6 +412,15 @@ pub(super) fn parse_mapping(s: &str) -> Result<HemisphereMapping, String> {
 }
 
 /// A share in (0, 1].
+fn parse_non_negative(text: &str) -> Result<f32, String> {
+    let value: f32 = text.parse().map_err(|_| format!("`{text}` is not a number"))?;
+    if value.is_finite() && value >= 0.0 {
+        Ok(value)
+    } else {
+        Err(format!("{value} is not a finite number ≥ 0"))
+    }
+}
+
 fn parse_share(text: &str) -> Result<f64, String> {
     let share: f64 = text.parse().map_err(|_| format!("`{text}` is not a number"))?;
     if share > 0.0 && share <= 1.0 {

@@ -25,8 +25,11 @@ impl TraceOptions {
         let hemisphere = self.hemisphere_settings()?;
         Ok(match structure {
             // Guided without next-event estimation learns the grid from the path's own
-            // continuation by default (see `without_nee_defaults`).
-            GuideStructure::Hemisphere if self.integral.is_none() && self.without_nee_defaults(method) => {
+            // continuation by default (see `without_nee_defaults`), as bdpt-guided always
+            // does.
+            GuideStructure::Hemisphere
+                if self.integral.is_none() && (self.without_nee_defaults(method) || method.bidirectional()) =>
+            {
                 let integral = IntegralEstimator::PathContinuation;
                 HemisphereGridSettings { update_rule: UpdateRule { integral, ..hemisphere.update_rule }, ..hemisphere }
                     .into()
@@ -198,9 +201,9 @@ impl TraceOptions {
             (None, _) if self.without_nee_defaults(method) => u32::MAX,
             (None, _) => 1,
         };
-        // Light tracing learns W alone: no focal guide, no learned share, no camera-side
-        // next-event estimation to kick-start from.
-        let light = method.traces_light();
+        // Light tracing and bdpt learn their directional guide alone: no focal guide, no
+        // learned share, no next-event estimation to kick-start from.
+        let light = method.splats();
         IntegratorSettings {
             method,
             max_depth: self.max_depth.max(1),
@@ -216,6 +219,7 @@ impl TraceOptions {
             nee_kickstart: !light && self.nee_kickstart.unwrap_or(self.without_nee_defaults(method)),
             light_selection: plan.light_selection,
             environment_sampling: plan.environment_sampling,
+            connection_roulette: self.connection_roulette,
         }
     }
 

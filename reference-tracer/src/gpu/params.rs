@@ -67,6 +67,8 @@ pub(super) fn method_code(method: Method) -> u32 {
         Method::Guided => 2,
         Method::GuidedNee => 3,
         // Refused before the GPU is reached (`Prepared::render`).
-        Method::Light | Method::LightGuided | Method::Bdpt => unreachable!("the GPU tracer has no light subpaths"),
+        Method::Light | Method::LightGuided | Method::Bdpt | Method::BdptGuided => {
+            unreachable!("the GPU tracer has no light subpaths")
+        }
     }
 }

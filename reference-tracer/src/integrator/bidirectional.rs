@@ -12,11 +12,13 @@
 //! weights to be exact.
 
 use glam::Vec3;
-use guiding_core::{Frame, Guide, Intersector, Pcg32, Ray};
+use guiding_core::{DirectionalDistribution, Frame, Guide, Intersector, PathRecorder, Pcg32, Ray};
 
 use super::counters::PathCounters;
 use super::light_path::{cosine_direction, importance_weight, shading_correction};
 use super::tracer::PathTracer;
+use crate::camera::EyeConnection;
+use crate::color::luminance;
 use crate::material::{Material, ShadingFrame};
 
 /// What a subpath vertex is.
@@ -30,9 +32,9 @@ enum VertexKind {
     Surface,
 }
 
-/// One vertex of a camera or light subpath.
+/// One vertex of a camera or light subpath; `R` is the directional guide's region type.
 #[derive(Clone, Copy, Debug)]
-pub struct SubpathVertex {
+pub struct SubpathVertex<R> {
     kind: VertexKind,
     point: Vec3,
     /// The geometric normal (a light's emitting side; unused at the camera).
@@ -53,9 +55,14 @@ pub struct SubpathVertex {
     pdf_rev: f32,
     /// Whether the direction sampled here came from a delta lobe.
     delta: bool,
+    /// bdpt-guided: the guide's region here (surfaces whose lobes are not all delta),
+    /// which the camera side's sampling mixes in.
+    region: Option<R>,
+    /// Density per steradian of the direction sampled here (what the guide learns with).
+    scatter_pdf: f32,
 }
 
-impl SubpathVertex {
+impl<R: Copy> SubpathVertex<R> {
     fn new(kind: VertexKind, point: Vec3, normal: Vec3, beta: Vec3, pdf_fwd: f32) -> Self {
         Self {
             kind,
@@ -68,6 +75,8 @@ impl SubpathVertex {
             pdf_fwd,
             pdf_rev: 0.0,
             delta: false,
+            region: None,
+            scatter_pdf: 0.0,
         }
     }
 
@@ -82,7 +91,7 @@ impl SubpathVertex {
 
     /// A density per steradian of leaving this vertex towards `next`, as a density per
     /// unit area at `next` (the cosine there, except at the camera, which is no surface).
-    fn area_density(&self, pdf_dir: f32, next: &SubpathVertex) -> f32 {
+    fn area_density(&self, pdf_dir: f32, next: &SubpathVertex<R>) -> f32 {
         let offset = next.point - self.point;
         let distance2 = offset.length_squared();
         if !distance2.is_finite() || distance2 <= 0.0 {
@@ -104,11 +113,65 @@ impl SubpathVertex {
     }
 }
 
-/// Per-thread space for the two subpaths (reused from sample to sample).
-#[derive(Clone, Debug, Default)]
-pub struct BidirectionalScratch {
-    camera: Vec<SubpathVertex>,
-    light: Vec<SubpathVertex>,
+/// What is left to test of a connection: nothing (a camera subpath that reached an
+/// emitter), the segment from a surface point to the eye, or one between two points.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Shadow {
+    Unblocked,
+    Eye { point: Vec3, normal: Vec3, eye: EyeConnection },
+    Segment { from: Vec3, normal: Vec3, to: Vec3 },
+}
+
+/// A strategy's contribution before its shadow ray.
+struct Connection<R> {
+    /// Unweighted, as if nothing blocked it.
+    value: Vec3,
+    /// The light vertex s = 1 drew.
+    sampled: Option<SubpathVertex<R>>,
+    /// The pixel a t = 1 connection lands in.
+    pixel: Option<(u32, u32)>,
+    shadow: Shadow,
+}
+
+impl<R> Connection<R> {
+    fn unblocked(value: Vec3) -> Self {
+        Self { value, sampled: None, pixel: None, shadow: Shadow::Unblocked }
+    }
+}
+
+impl Side {
+    fn other(self) -> Side {
+        match self {
+            Side::Camera => Side::Light,
+            Side::Light => Side::Camera,
+        }
+    }
+}
+
+/// Per-thread space for the two subpaths (reused from sample to sample) and what the
+/// camera subpath teaches the guide.
+#[derive(Clone, Debug)]
+pub struct BidirectionalScratch<R> {
+    camera: Vec<SubpathVertex<R>>,
+    light: Vec<SubpathVertex<R>>,
+    /// Per camera vertex, the direct light its light sample (s = 1) reflects towards
+    /// the previous vertex, MIS-weighted against scattering (luminance; learning only).
+    direct: Vec<f32>,
+    recorder: PathRecorder<R>,
+}
+
+impl<R: Copy> Default for BidirectionalScratch<R> {
+    fn default() -> Self {
+        Self { camera: Vec::new(), light: Vec::new(), direct: Vec::new(), recorder: PathRecorder::new() }
+    }
+}
+
+/// Which subpath's sampling a density is of: the camera's (guided in bdpt-guided) or
+/// the light's.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Side {
+    Camera,
+    Light,
 }
 
 /// The power heuristic's term for one strategy ratio: (p_other / p_this)² with zero
@@ -129,16 +192,22 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
         (x, y): (u32, u32),
         rng: &mut Pcg32,
         image: &mut [Vec3],
-        scratch: &mut BidirectionalScratch,
+        scratch: &mut BidirectionalScratch<G::Region>,
         counters: &mut PathCounters,
     ) {
         counters.paths += 1;
-        let BidirectionalScratch { camera, light } = scratch;
+        let BidirectionalScratch { camera, light, direct, recorder } = scratch;
         self.camera_subpath(x, y, rng, camera, counters);
         self.light_subpath(rng, light, counters);
+        let learning = self.settings.learn && self.guide.is_some();
+        if learning {
+            direct.clear();
+            direct.resize(camera.len(), 0.0);
+        }
         let width = self.scene.camera.width as usize;
         let pixel = y as usize * width + x as usize;
         let max_edges = self.settings.max_depth as usize;
+        let threshold = self.connection_threshold;
         let mut contributed = false;
         for t in 1..=camera.len() {
             for s in 0..=light.len() {
@@ -146,15 +215,36 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
                 if (t == 1 && s <= 1) || edges > max_edges {
                     continue;
                 }
-                let Some((value, sampled, splat_pixel)) = self.connect(camera, light, s, t, rng, counters) else {
-                    continue;
-                };
-                let weight = self.mis_weight(camera, light, sampled.as_ref(), s, t);
-                let value = value * weight;
+                let Some(connection) = self.connect(camera, light, s, t, rng) else { continue };
+                let mut value = connection.value;
                 if !(value.is_finite() && value.max_element() > 0.0) {
                     continue;
                 }
-                let index = splat_pixel.map_or(pixel, |(px, py)| py as usize * width + px as usize);
+                // Connection roulette: a faint connection has its shadow ray traced only
+                // with probability ∝ its contribution (unweighted: an upper bound of the
+                // weighted one, known before the weight's cost is paid), and counts by
+                // the inverse (unbiased; most connections of a long path are faint).
+                if threshold > 0.0 && connection.shadow != Shadow::Unblocked {
+                    let survival = (luminance(value) / threshold).min(1.0);
+                    if rng.next_f32() >= survival {
+                        continue;
+                    }
+                    value /= survival;
+                }
+                value *= self.shadow_transmittance(&connection.shadow, counters);
+                if value.max_element() <= 0.0 {
+                    continue;
+                }
+                if learning && s == 1 {
+                    if let Some(sampled) = &connection.sampled {
+                        direct[t - 1] = self.learned_direct_light(camera, t, sampled, value);
+                    }
+                }
+                value *= self.mis_weight(camera, light, connection.sampled.as_ref(), s, t);
+                if !(value.is_finite() && value.max_element() > 0.0) {
+                    continue;
+                }
+                let index = connection.pixel.map_or(pixel, |(px, py)| py as usize * width + px as usize);
                 image[index] += value;
                 contributed = true;
             }
@@ -162,6 +252,87 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
         if contributed {
             counters.nonzero_paths += 1;
         }
+        if learning {
+            self.teach_camera_subpath(camera, direct, recorder);
+        }
+    }
+
+    /// The light sample of camera vertex t − 1 (its contribution `value`, unweighted,
+    /// from the light point `sampled`) as the radiance it reflects towards the previous
+    /// vertex, weighted by the power heuristic against the camera side's sampling finding
+    /// the same light (luminance): with that weight on the emission scattering finds, the
+    /// two add up to the light arriving there, as path tracing with next-event
+    /// estimation estimates it.
+    fn learned_direct_light(
+        &self,
+        camera: &[SubpathVertex<G::Region>],
+        t: usize,
+        sampled: &SubpathVertex<G::Region>,
+        value: Vec3,
+    ) -> f32 {
+        let pt = &camera[t - 1];
+        let scatter = self.density_towards(pt, t.checked_sub(2).map(|i| &camera[i]), sampled, Side::Camera);
+        let light = sampled.pdf_fwd;
+        let weight = crate::sampling::power_heuristic(light, scatter);
+        luminance(value) * weight / luminance(pt.beta).max(f32::MIN_POSITIVE)
+    }
+
+    /// Teaches the guide what the camera subpath found (bdpt-guided, learning passes):
+    /// Eq. (1) along it, by the path's own continuation, each vertex's target the
+    /// emission its direction reached (weighted against light sampling, the rest learned
+    /// by the vertex alone, as `nee_kickstart` does) plus the direct light the next
+    /// vertex's light sample reflects back, plus what the next vertex's own target
+    /// carries back.
+    fn teach_camera_subpath(
+        &self,
+        camera: &[SubpathVertex<G::Region>],
+        direct: &[f32],
+        recorder: &mut PathRecorder<G::Region>,
+    ) {
+        let Some(guide) = self.guide else { return };
+        recorder.clear();
+        for k in 1..camera.len() {
+            let vertex = &camera[k];
+            if k >= 2 {
+                // What arrived along the direction camera[k − 1] scattered.
+                let from = &camera[k - 1];
+                let emitted = luminance(vertex.emitted());
+                if emitted > 0.0 {
+                    // Area densities at this vertex of both strategies that find it.
+                    let light = self.light_origin_pdf(vertex);
+                    let weight = if from.delta { 1.0 } else { crate::sampling::power_heuristic(vertex.pdf_fwd, light) };
+                    recorder.arrive(weight * emitted);
+                    recorder.arrive_learned_only((1.0 - weight) * emitted);
+                    // The light's density per steradian, as seen from the scattering vertex.
+                    let offset = vertex.point - from.point;
+                    let cos = vertex.normal.dot(offset).abs() / offset.length();
+                    if cos > 0.0 && !from.delta {
+                        recorder.add_density(light * offset.length_squared() / cos);
+                    }
+                }
+                recorder.arrive(direct[k]);
+                if k + 1 < camera.len() {
+                    let ratio = luminance(camera[k + 1].beta) / luminance(vertex.beta).max(f32::MIN_POSITIVE);
+                    recorder.carry(ratio);
+                }
+            }
+            if k + 1 < camera.len() {
+                let next = &camera[k + 1];
+                let offset = next.point - vertex.point;
+                let distance = offset.length();
+                let region = vertex.region.filter(|_| !vertex.delta);
+                recorder.scattered(
+                    region,
+                    vertex.point,
+                    offset / distance,
+                    vertex.scatter_pdf,
+                    luminance(next.beta),
+                    (),
+                );
+                recorder.reached(distance);
+            }
+        }
+        recorder.learn(guide, self.settings.density_weighted_learning);
     }
 
     /// The camera subpath through pixel (`x`, `y`): the eye, then up to `max_depth`
@@ -171,7 +342,7 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
         x: u32,
         y: u32,
         rng: &mut Pcg32,
-        path: &mut Vec<SubpathVertex>,
+        path: &mut Vec<SubpathVertex<G::Region>>,
         counters: &mut PathCounters,
     ) {
         path.clear();
@@ -179,12 +350,12 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
         let camera = &self.scene.camera;
         let (_, forward, ..) = camera.basis();
         path.push(SubpathVertex::new(VertexKind::Camera, ray.origin, forward, Vec3::ONE, 1.0));
-        self.random_walk(ray, Vec3::ONE, false, rng, path, counters);
+        self.random_walk(ray, Vec3::ONE, Side::Camera, rng, path, counters);
     }
 
     /// The light subpath: a point on a light picked by power, uniform on it, leaving by
     /// the cosine about its normal; then up to `max_depth − 1` surfaces.
-    fn light_subpath(&self, rng: &mut Pcg32, path: &mut Vec<SubpathVertex>, counters: &mut PathCounters) {
+    fn light_subpath(&self, rng: &mut Pcg32, path: &mut Vec<SubpathVertex<G::Region>>, counters: &mut PathCounters) {
         path.clear();
         let lights = &self.scene.lights;
         if lights.is_empty() {
@@ -208,14 +379,16 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
         }
         let beta = emission * (cos_light / (position_pdf * pdf_dir));
         let ray = Ray::new(self.spawn(origin, normal, direction), direction);
-        self.random_walk(ray, beta, true, rng, path, counters);
+        self.random_walk(ray, beta, Side::Light, rng, path, counters);
     }
 
-    /// Extends `path` (which holds its first vertex) along `ray` by BSDF sampling, up to
-    /// `max_depth` + 1 vertices from the camera and `max_depth` from a light (so that
-    /// no strategy makes a path of more than `max_depth` segments), recording each vertex's forward density and its predecessor's
-    /// reverse one. `importance`: the subpath carries importance from the light side
-    /// (adjoint shading-normal correction, refraction unscaled).
+    /// Extends `path` (which holds its first vertex) along `ray`, up to `max_depth` + 1
+    /// vertices from the camera and `max_depth` from a light (so that no strategy makes a
+    /// path of more than `max_depth` segments), recording each vertex's forward density
+    /// and its predecessor's reverse one. From the light (`Side::Light`) it carries
+    /// importance (adjoint shading-normal correction, refraction unscaled) and samples
+    /// the BSDF; from the camera it samples the BSDF or, in bdpt-guided, with probability
+    /// p_guide the guide, weighted by the mixture's density.
     ///
     /// Both densities are evaluated between the vertices where they lie, not taken from
     /// the sampler: a ray leaves its surface from a point offset along the normal, so the
@@ -225,12 +398,13 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
         &self,
         mut ray: Ray,
         mut beta: Vec3,
-        importance: bool,
+        side: Side,
         rng: &mut Pcg32,
-        path: &mut Vec<SubpathVertex>,
+        path: &mut Vec<SubpathVertex<G::Region>>,
         counters: &mut PathCounters,
     ) {
-        let max_vertices = self.settings.max_depth as usize + usize::from(!importance);
+        let max_vertices = self.settings.max_depth as usize + usize::from(side == Side::Camera);
+        let p_guide = if side == Side::Camera { self.bidirectional_guide_share() } else { 0.0 };
         // Russian roulette by the throughput relative to the subpath's start.
         let mut relative = Vec3::ONE;
         while path.len() < max_vertices {
@@ -245,13 +419,17 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
             if surface.material.is_emissive() {
                 vertex.light = self.scene.lights.light_at(hit.primitive, hit.barycentrics);
             }
+            // Both sides locate: a light vertex's camera-side density needs its region.
+            if let (Some(guide), false) = (self.guide, surface.material.is_delta()) {
+                vertex.region = guide.locate(surface.point, surface.shading.frame.normal);
+            }
             let k = path.len();
             let previous = path[k - 1];
             if !previous.delta {
                 let before = k.checked_sub(2).map(|i| path[i]);
-                vertex.pdf_fwd = self.density_towards(&previous, before.as_ref(), &vertex);
+                vertex.pdf_fwd = self.density_towards(&previous, before.as_ref(), &vertex, side);
                 if let Some(before) = before {
-                    path[k - 2].pdf_rev = self.density_towards(&previous, Some(&vertex), &before);
+                    path[k - 2].pdf_rev = self.density_towards(&previous, Some(&vertex), &before, side.other());
                 }
             }
             path.push(vertex);
@@ -266,55 +444,82 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
                 beta /= survival;
                 relative /= survival;
             }
-            let (u, u_lobe) = (rng.next_vec2(), rng.next_f32());
+            let (u_choice, u, u_lobe) = (rng.next_f32(), rng.next_vec2(), rng.next_f32());
             let (material, shading, wo) = (&surface.material, &surface.shading, surface.wo);
-            let Some(sample) = material.sample(shading, wo, u, u_lobe) else { break };
-            let factor = if importance {
-                importance_weight(material, shading, wo, sample.wi, sample.weight)
-            } else {
-                sample.weight
+            let distribution = match (self.guide, vertex.region) {
+                (Some(guide), Some(region)) if p_guide > 0.0 => Some(guide.distribution(region)),
+                _ => None,
             };
-            if !(factor.is_finite() && factor.max_element() > 0.0) {
+            let (wi, factor, pdf) = match &distribution {
+                Some(d) => {
+                    let wi = if u_choice < p_guide {
+                        d.sample(u).direction
+                    } else {
+                        let Some(sample) = material.sample(shading, wo, u, u_lobe) else { break };
+                        sample.wi
+                    };
+                    let pdf = p_guide * d.pdf(wi) + (1.0 - p_guide) * material.pdf(shading, wo, wi);
+                    (wi, material.eval(shading, wo, wi) / pdf, pdf)
+                }
+                None => {
+                    let Some(sample) = material.sample(shading, wo, u, u_lobe) else { break };
+                    let factor = match side {
+                        Side::Light => importance_weight(material, shading, wo, sample.wi, sample.weight),
+                        Side::Camera => sample.weight,
+                    };
+                    (sample.wi, factor, sample.pdf)
+                }
+            };
+            if !(factor.is_finite() && factor.max_element() > 0.0 && pdf > 0.0) {
                 break;
             }
             beta *= factor;
             relative *= factor;
             path[k].delta = material.is_delta();
-            ray = Ray::new(self.spawn(surface.point, surface.geometric_normal, sample.wi), sample.wi);
+            path[k].scatter_pdf = pdf;
+            ray = Ray::new(self.spawn(surface.point, surface.geometric_normal, wi), wi);
         }
     }
 
-    /// The unweighted contribution of strategy (s, t), the light vertex it drew (s = 1)
-    /// and the pixel it lands in when that is not the sample's own (t = 1).
-    #[allow(clippy::type_complexity)]
+    /// bdpt-guided's share of the guide in the camera subpath's sampling (0 unguided).
+    fn bidirectional_guide_share(&self) -> f32 {
+        if self.guide.is_some() {
+            self.settings.guide_probability
+        } else {
+            0.0
+        }
+    }
+
+    /// Strategy (s, t) before its shadow ray: the unweighted contribution if nothing
+    /// blocks it, the light vertex it drew (s = 1), the pixel it lands in when that is
+    /// not the sample's own (t = 1), and the segment left to test.
     fn connect(
         &self,
-        camera: &[SubpathVertex],
-        light: &[SubpathVertex],
+        camera: &[SubpathVertex<G::Region>],
+        light: &[SubpathVertex<G::Region>],
         s: usize,
         t: usize,
         rng: &mut Pcg32,
-        counters: &mut PathCounters,
-    ) -> Option<(Vec3, Option<SubpathVertex>, Option<(u32, u32)>)> {
+    ) -> Option<Connection<G::Region>> {
         if s == 0 {
             // The camera subpath reached an emitter.
             let pt = &camera[t - 1];
             let emitted = pt.emitted();
-            return (emitted.max_element() > 0.0).then_some((pt.beta * emitted, None, None));
+            let value = pt.beta * emitted;
+            return (emitted.max_element() > 0.0).then_some(Connection::unblocked(value));
         }
         if t == 1 {
             // A light vertex seen by the camera.
             let qs = &light[s - 1];
             let (material, shading) = qs.surface.filter(|_| qs.connectible())?;
-            let connection = self.scene.camera.connect(qs.point)?;
-            let f = material.eval(&shading, qs.wo, connection.to_eye)
-                * shading_correction(&shading, qs.wo, connection.to_eye);
+            let eye = self.scene.camera.connect(qs.point)?;
+            let f = material.eval(&shading, qs.wo, eye.to_eye) * shading_correction(&shading, qs.wo, eye.to_eye);
             if f.max_element() <= 0.0 {
                 return None;
             }
-            let visible = self.eye_transmittance(qs.point, qs.normal, &connection, counters);
-            let value = qs.beta * f * (visible * connection.importance);
-            return (visible > 0.0).then_some((value, None, Some(connection.pixel)));
+            let value = qs.beta * f * eye.importance;
+            let shadow = Shadow::Eye { point: qs.point, normal: qs.normal, eye };
+            return Some(Connection { value, sampled: None, pixel: Some(eye.pixel), shadow });
         }
         let pt = &camera[t - 1];
         let (camera_material, camera_shading) = pt.surface.filter(|_| pt.connectible())?;
@@ -336,12 +541,12 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
             if f.max_element() <= 0.0 {
                 return None;
             }
-            let visible = self.segment_transmittance(pt, point, counters);
-            let value = pt.beta * f * emission * (visible * cos_light / (distance2 * position_pdf));
+            let value = pt.beta * f * emission * (cos_light / (distance2 * position_pdf));
             let mut sampled =
                 SubpathVertex::new(VertexKind::Light, point, normal, emission / position_pdf, position_pdf);
             sampled.light = Some(index);
-            return (visible > 0.0).then_some((value, Some(sampled), None));
+            let shadow = Shadow::Segment { from: pt.point, normal: pt.normal, to: point };
+            return Some(Connection { value, sampled: Some(sampled), pixel: None, shadow });
         }
         // Two surfaces joined by a shadow ray.
         let qs = &light[s - 1];
@@ -357,27 +562,44 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
         if f_camera.max_element() <= 0.0 || f_light.max_element() <= 0.0 {
             return None;
         }
-        let visible = self.segment_transmittance(pt, qs.point, counters);
-        let value = pt.beta * f_camera * f_light * qs.beta * (visible / distance2);
-        (visible > 0.0).then_some((value, None, None))
+        let value = pt.beta * f_camera * f_light * qs.beta / distance2;
+        let shadow = Shadow::Segment { from: pt.point, normal: pt.normal, to: qs.point };
+        Some(Connection { value, sampled: None, pixel: None, shadow })
     }
 
-    /// The share of light passing between surface vertex `from` and `to` (masks
-    /// weighed; 0 when blocked), stopping short of both ends by the spawn offset.
-    fn segment_transmittance(&self, from: &SubpathVertex, to: Vec3, counters: &mut PathCounters) -> f32 {
-        let offset = to - from.point;
+    /// The share of light that passes `shadow` (masks weighed; 0 when blocked).
+    fn shadow_transmittance(&self, shadow: &Shadow, counters: &mut PathCounters) -> f32 {
+        match shadow {
+            Shadow::Unblocked => 1.0,
+            Shadow::Eye { point, normal, eye } => self.eye_transmittance(*point, *normal, eye, counters),
+            Shadow::Segment { from, normal, to } => self.segment_transmittance(*from, *normal, *to, counters),
+        }
+    }
+
+    /// The share of light passing between `from` (on a surface of normal `normal`) and
+    /// `to` (masks weighed; 0 when blocked), stopping short of both ends by the spawn
+    /// offset.
+    fn segment_transmittance(&self, from: Vec3, normal: Vec3, to: Vec3, counters: &mut PathCounters) -> f32 {
+        let offset = to - from;
         let distance = offset.length();
         let wi = offset / distance;
-        let origin = self.spawn(from.point, from.normal, wi);
-        let margin = self.epsilon_at(from.point) + self.epsilon_at(to);
+        let origin = self.spawn(from, normal, wi);
+        let margin = self.epsilon_at(from) + self.epsilon_at(to);
         let t_max = (distance - margin).max(0.0) * (1.0 - 1e-5);
         counters.rays += 1;
         self.transmittance(Ray::segment(origin, wi, 0.0, t_max), counters)
     }
 
     /// Density per unit area at `next` of `vertex` scattering (or emitting, or looking)
-    /// towards it, having been reached from `previous` (surfaces only).
-    fn density_towards(&self, vertex: &SubpathVertex, previous: Option<&SubpathVertex>, next: &SubpathVertex) -> f32 {
+    /// towards it, having been reached from `previous` (surfaces only), by `side`'s
+    /// sampling: the camera side mixes in the guide where bdpt-guided has a region.
+    fn density_towards(
+        &self,
+        vertex: &SubpathVertex<G::Region>,
+        previous: Option<&SubpathVertex<G::Region>>,
+        next: &SubpathVertex<G::Region>,
+        side: Side,
+    ) -> f32 {
         let offset = next.point - vertex.point;
         let distance = offset.length();
         if !distance.is_finite() || distance <= 0.0 {
@@ -390,7 +612,14 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
             VertexKind::Surface => match (vertex.surface, previous) {
                 (Some((material, shading)), Some(previous)) => {
                     let wo = (previous.point - vertex.point).normalize_or_zero();
-                    material.pdf(&shading, wo, wi)
+                    let bsdf = material.pdf(&shading, wo, wi);
+                    let p_guide = if side == Side::Camera { self.bidirectional_guide_share() } else { 0.0 };
+                    match (self.guide, vertex.region) {
+                        (Some(guide), Some(region)) if p_guide > 0.0 => {
+                            p_guide * guide.distribution(region).pdf(wi) + (1.0 - p_guide) * bsdf
+                        }
+                        _ => bsdf,
+                    }
                 }
                 _ => 0.0,
             },
@@ -400,12 +629,12 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
 
     /// Density per steradian of a light subpath leaving emitter point `vertex` along
     /// `wi` (cosine about its front normal).
-    fn emission_direction_pdf(&self, vertex: &SubpathVertex, wi: Vec3) -> f32 {
+    fn emission_direction_pdf(&self, vertex: &SubpathVertex<G::Region>, wi: Vec3) -> f32 {
         vertex.normal.dot(wi).max(0.0) * std::f32::consts::FRAC_1_PI
     }
 
     /// Density per unit area with which a light subpath starts at emitter `vertex`.
-    fn light_origin_pdf(&self, vertex: &SubpathVertex) -> f32 {
+    fn light_origin_pdf(&self, vertex: &SubpathVertex<G::Region>) -> f32 {
         let lights = &self.scene.lights;
         vertex.light.map_or(0.0, |light| lights.power_probability(light) / lights.light(light).2)
     }
@@ -415,9 +644,9 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
     /// outwards from the connection; `sampled` is the light vertex s = 1 drew.
     fn mis_weight(
         &self,
-        camera: &[SubpathVertex],
-        light: &[SubpathVertex],
-        sampled: Option<&SubpathVertex>,
+        camera: &[SubpathVertex<G::Region>],
+        light: &[SubpathVertex<G::Region>],
+        sampled: Option<&SubpathVertex<G::Region>>,
         s: usize,
         t: usize,
     ) -> f32 {
@@ -431,19 +660,19 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
         // The reverse densities the connection gives the vertices on both sides of it
         // (the stored ones are for each subpath's own continuation).
         let pt_reverse = match qs {
-            Some(qs) => self.density_towards(qs, qs_minus, pt),
+            Some(qs) => self.density_towards(qs, qs_minus, pt, Side::Light),
             None => self.light_origin_pdf(pt),
         };
         let pt_minus_reverse = pt_minus.map_or(0.0, |pm| match qs {
-            Some(qs) => self.density_towards(pt, Some(qs), pm),
+            Some(qs) => self.density_towards(pt, Some(qs), pm, Side::Light),
             None => {
                 let offset = pm.point - pt.point;
                 pt.area_density(self.emission_direction_pdf(pt, offset.normalize_or_zero()), pm)
             }
         });
-        let qs_reverse = qs.map_or(0.0, |qs| self.density_towards(pt, pt_minus, qs));
+        let qs_reverse = qs.map_or(0.0, |qs| self.density_towards(pt, pt_minus, qs, Side::Camera));
         let qs_minus_reverse = match (qs, qs_minus) {
-            (Some(qs), Some(qm)) => self.density_towards(qs, Some(pt), qm),
+            (Some(qs), Some(qm)) => self.density_towards(qs, Some(pt), qm, Side::Camera),
             _ => 0.0,
         };
         let mut sum = 0.0f32;
@@ -505,10 +734,10 @@ mod tests {
     /// a light subpath's sampling (forward) and a camera subpath's (reverse) give it.
     fn reversed<I: Intersector, G: Guide>(
         tracer: &PathTracer<'_, I, G>,
-        path: &[SubpathVertex],
+        path: &[SubpathVertex<G::Region>],
         from: usize,
-    ) -> Vec<SubpathVertex> {
-        let mut light: Vec<SubpathVertex> = path[from..].iter().rev().copied().collect();
+    ) -> Vec<SubpathVertex<G::Region>> {
+        let mut light: Vec<SubpathVertex<G::Region>> = path[from..].iter().rev().copied().collect();
         light[0].kind = VertexKind::Light;
         light[0].pdf_fwd = tracer.light_origin_pdf(&light[0]);
         for j in 1..light.len() {
@@ -516,13 +745,13 @@ mod tests {
         }
         for j in 1..light.len() {
             let previous = (j >= 2).then(|| light[j - 2]);
-            light[j].pdf_fwd = tracer.density_towards(&light[j - 1], previous.as_ref(), &light[j]);
+            light[j].pdf_fwd = tracer.density_towards(&light[j - 1], previous.as_ref(), &light[j], Side::Light);
         }
         // Reverse densities come from the camera side: the vertex after j, reached from
         // the one after that (the last two the connection gives their own).
         for j in 0..light.len().saturating_sub(2) {
             let (next, after) = (light[j + 1], light[j + 2]);
-            light[j].pdf_rev = tracer.density_towards(&next, Some(&after), &light[j]);
+            light[j].pdf_rev = tracer.density_towards(&next, Some(&after), &light[j], Side::Camera);
         }
         light
     }
@@ -535,15 +764,57 @@ mod tests {
     #[test]
     fn mis_weights_of_every_path_sum_to_one() {
         for name in ["cornell", "glossy"] {
-            weights_sum_to_one(&repository_scene(name), name);
+            let scene = repository_scene(name);
+            let intersector = SceneIntersector::build(&scene.triangles, IntersectorChoice::default()).unwrap();
+            let settings =
+                IntegratorSettings { method: Method::Bdpt, max_depth: 8, rr_depth: 64, ..Default::default() };
+            let tracer: PathTracer<'_, _, HemisphereGrid> =
+                PathTracer::new(&scene, &intersector, None, None, None, None, settings);
+            weights_sum_to_one(&tracer, name);
         }
     }
 
-    fn weights_sum_to_one(scene: &Scene, name: &str) {
-        let intersector = SceneIntersector::build(&scene.triangles, IntersectorChoice::default()).unwrap();
-        let settings = IntegratorSettings { method: Method::Bdpt, max_depth: 8, rr_depth: 64, ..Default::default() };
-        let tracer: PathTracer<'_, _, HemisphereGrid> =
-            PathTracer::new(scene, &intersector, None, None, None, None, settings);
+    /// The same with camera subpaths guided by a hemisphere grid that learned from
+    /// bdpt-guided's own samples: the guided densities enter every weight.
+    #[test]
+    fn guided_mis_weights_of_every_path_sum_to_one() {
+        for name in ["cornell", "glossy"] {
+            let scene = repository_scene(name);
+            let intersector = SceneIntersector::build(&scene.triangles, IntersectorChoice::default()).unwrap();
+            let grid_settings = guiding_core::HemisphereGridSettings { probe_count: Some(40), ..Default::default() };
+            let mut grid = HemisphereGrid::build(&scene.triangles, grid_settings).unwrap();
+            let settings = IntegratorSettings {
+                method: Method::BdptGuided,
+                max_depth: 8,
+                rr_depth: 64,
+                guide_probability: 0.5,
+                ..Default::default()
+            };
+            // Learn for a few passes, so the guide is far from uniform.
+            for pass in 0..4u64 {
+                let tracer = PathTracer::new(&scene, &intersector, Some(&grid), None, None, None, settings);
+                let mut scratch = BidirectionalScratch::default();
+                let mut image = vec![Vec3::ZERO; 256];
+                let mut counters = PathCounters::default();
+                for pixel in 0..256u64 {
+                    let mut rng = Pcg32::new(pass * 1000 + pixel, 3);
+                    let xy = ((pixel % 16) as u32, (pixel / 16) as u32);
+                    tracer.bidirectional_sample(xy, &mut rng, &mut image, &mut scratch, &mut counters);
+                }
+                grid.rebuild_sampling();
+            }
+            assert!(
+                grid.stats().accepted_updates > 1000,
+                "{name}: the grid learned {} updates",
+                grid.stats().accepted_updates
+            );
+            let frozen = IntegratorSettings { learn: false, ..settings };
+            let tracer = PathTracer::new(&scene, &intersector, Some(&grid), None, None, None, frozen);
+            weights_sum_to_one(&tracer, &format!("{name}, guided"));
+        }
+    }
+
+    fn weights_sum_to_one<I: Intersector, G: Guide>(tracer: &PathTracer<'_, I, G>, name: &str) {
         let mut counters = PathCounters::default();
         let mut camera = Vec::new();
         let (mut checked, mut through_delta) = (0, 0);
@@ -564,7 +835,7 @@ mod tests {
                 if s == 1 && t == 1 || joins_delta {
                     continue;
                 }
-                let mut light = if s == 0 { Vec::new() } else { reversed(&tracer, &camera[..vertices], t) };
+                let mut light = if s == 0 { Vec::new() } else { reversed(tracer, &camera[..vertices], t) };
                 let sampled = (s == 1).then(|| light[0]);
                 // The reverse densities next to the connection belong to each subpath's
                 // own continuation, which a real light subpath does not share: the
@@ -580,7 +851,7 @@ mod tests {
             through_delta += camera[..end].iter().any(|v| v.delta) as u32;
         }
         assert!(checked > 200, "{name}: only {checked} paths reached the light");
-        if name == "glossy" {
+        if name.starts_with("glossy") {
             assert!(through_delta > 20, "{name}: only {through_delta} paths met a mirror or glass");
         }
     }

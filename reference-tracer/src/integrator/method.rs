@@ -19,12 +19,23 @@ pub enum Method {
     /// Bidirectional path tracing: a camera and a light subpath per sample, joined in
     /// every way, each strategy weighted by the power heuristic computed exactly.
     Bdpt,
+    /// Bidirectional path tracing whose camera subpaths are guided by Q (learned from
+    /// them), the guided densities in every strategy's weight.
+    BdptGuided,
 }
 
 impl Method {
     /// Every method, in the order the command line lists them.
-    pub const ALL: [Method; 7] =
-        [Method::Pt, Method::Nee, Method::Guided, Method::GuidedNee, Method::Light, Method::LightGuided, Method::Bdpt];
+    pub const ALL: [Method; 8] = [
+        Method::Pt,
+        Method::Nee,
+        Method::Guided,
+        Method::GuidedNee,
+        Method::Light,
+        Method::LightGuided,
+        Method::Bdpt,
+        Method::BdptGuided,
+    ];
 
     /// The command-line name.
     pub fn name(self) -> &'static str {
@@ -36,6 +47,7 @@ impl Method {
             Method::Light => "light",
             Method::LightGuided => "light-guided",
             Method::Bdpt => "bdpt",
+            Method::BdptGuided => "bdpt-guided",
         }
     }
 
@@ -51,7 +63,7 @@ impl Method {
 
     /// Whether directions are drawn from a learned guide.
     pub fn uses_guide(self) -> bool {
-        matches!(self, Method::Guided | Method::GuidedNee | Method::LightGuided)
+        matches!(self, Method::Guided | Method::GuidedNee | Method::LightGuided | Method::BdptGuided)
     }
 
     /// Whether paths start on the lights (light tracing).
@@ -61,7 +73,7 @@ impl Method {
 
     /// Whether each sample joins a camera subpath and a light subpath (bdpt).
     pub fn bidirectional(self) -> bool {
-        matches!(self, Method::Bdpt)
+        matches!(self, Method::Bdpt | Method::BdptGuided)
     }
 
     /// Whether some of its samples land in other pixels than their own (connections

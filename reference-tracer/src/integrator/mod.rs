@@ -20,5 +20,5 @@ mod tracer;
 pub use bidirectional::{BidirectionalScratch, SubpathVertex};
 pub use counters::{PathCounters, TIMED_PATH_STRIDE};
 pub use method::{EnvironmentSampling, LightSelection, Method};
-pub use settings::IntegratorSettings;
+pub use settings::{IntegratorSettings, DEFAULT_CONNECTION_ROULETTE};
 pub use tracer::{PathScratch, PathTracer, VertexStrategies};

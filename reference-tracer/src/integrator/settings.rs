@@ -53,7 +53,15 @@ pub struct IntegratorSettings {
     pub light_selection: LightSelection,
     /// How next-event estimation samples the environment.
     pub environment_sampling: EnvironmentSampling,
+    /// bdpt's connection roulette, as a share of the image's mean luminance so far: a
+    /// connection whose weighted contribution, if unblocked, is fainter than this share
+    /// of it traces its shadow ray only with probability in proportion (and counts by
+    /// the inverse: unbiased). 0 traces every connection.
+    pub connection_roulette: f32,
 }
+
+/// [`IntegratorSettings::connection_roulette`] by default.
+pub const DEFAULT_CONNECTION_ROULETTE: f32 = 0.0;
 
 impl Default for IntegratorSettings {
     fn default() -> Self {
@@ -72,6 +80,7 @@ impl Default for IntegratorSettings {
             nee_kickstart: false,
             light_selection: LightSelection::Power,
             environment_sampling: EnvironmentSampling::Luminance,
+            connection_roulette: DEFAULT_CONNECTION_ROULETTE,
         }
     }
 }

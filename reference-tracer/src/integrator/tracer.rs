@@ -133,6 +133,9 @@ pub struct PathTracer<'a, I: Intersector, G: Guide> {
     /// The guide learns from the path's own continuation (no integral estimate at the
     /// next vertex: every vertex carries its successor's target back).
     pub(super) carries_path: bool,
+    /// bdpt's connection roulette threshold (luminance of a weighted contribution; 0:
+    /// every connection traced): see [`with_connection_threshold`](Self::with_connection_threshold).
+    pub(super) connection_threshold: f32,
 }
 
 /// The surface a path reached, built once per hit: where it is, which way it faces,
@@ -211,12 +214,21 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             environment_choice,
             masks,
             carries_path,
+            connection_threshold: 0.0,
         }
     }
 
     /// The settings it traces with.
     pub fn settings(&self) -> &IntegratorSettings {
         &self.settings
+    }
+
+    /// The tracer with bdpt's connection roulette: a connection whose weighted, unblocked
+    /// contribution has luminance c below `threshold` traces its shadow ray with
+    /// probability c / `threshold` only, weighted by the inverse (0 or less: all traced).
+    pub fn with_connection_threshold(mut self, threshold: f32) -> Self {
+        self.connection_threshold = if threshold.is_finite() { threshold.max(0.0) } else { 0.0 };
+        self
     }
 
     /// The tracer with a next-event gate (used where the method estimates next-event
