@@ -9,6 +9,11 @@ guiding exists for.
 window: a closed room lit only by the environment (the Venice sunset map) through one
 small window.
 glossy: a box room with a rough metal sphere and a glass block under a small ceiling light.
+caustic: a room whose only light hangs in a recess above the ceiling, behind a glass ball
+set into the ceiling's opening like a lens: nearly all light enters refracted (a caustic
+on the floor below, and the light seen from any diffuse point only through glass), and a
+mirror on the left wall shows it again - the case light paths and bidirectional methods
+exist for.
 many_lights: a floor plan of 8 × 8 rooms joined by doorways, one small ceiling light in
 each (64 lights of equal power): from any point most lights are behind walls, the case
 learned light selection exists for.
@@ -197,6 +202,43 @@ def glossy_scene(folder):
     }
 
 
+def caustic_scene(folder):
+    hole, recess, top = 0.18, 0.3, 2.35
+    shapes = room((-1.0, 0.0, -1.0), (1.0, 2.0, 1.0), "white", skip=("front", "ceiling"))
+    # The ceiling around a square opening, facing down (as `room` winds it).
+    y = 2.0
+
+    def ceiling(x0, x1, z0, z1):
+        return quad([(x0, y, z0), (x0, y, z1), (x1, y, z1), (x1, y, z0)][::-1], "white")
+
+    shapes += [ceiling(-1.0, 1.0, -1.0, -hole), ceiling(-1.0, 1.0, hole, 1.0),
+               ceiling(-1.0, -hole, -hole, hole), ceiling(hole, 1.0, -hole, hole)]
+    # The recess above it, open at the bottom, with the lamp under its top.
+    shapes += room((-recess, y, -recess), (recess, top, recess), "white", skip=("floor",))
+    ly, h = top - 0.005, 0.12
+    shapes.append(quad([(-h, ly, -h), (-h, ly, h), (h, ly, h), (h, ly, -h)][::-1], "lamp"))
+    # The glass ball in the opening: wider than it, so light passes it but at the corners.
+    vertices, faces = icosphere(4)
+    os.makedirs(os.path.join(folder, "meshes"), exist_ok=True)
+    write_obj(os.path.join(folder, "meshes", "ball.obj"), vertices, faces, (0.0, y, 0.0), 0.24)
+    shapes.append({"type": "mesh", "file": "meshes/ball.obj", "material": "glass"})
+    # A mirror on the left wall, facing into the room.
+    x = -0.995
+    shapes.append(quad([(x, 0.2, -0.7), (x, 0.2, 0.1), (x, 1.4, 0.1), (x, 1.4, -0.7)][::-1], "mirror"))
+    return {
+        "format": 1,
+        "camera": {"eye": [0, 1, 3.9], "target": [0, 0.9, 0], "up": [0, 1, 0],
+                   "fov_y_deg": 39.3, "width": 128, "height": 128},
+        "materials": {
+            "white": {"type": "diffuse", "albedo": [0.72, 0.72, 0.7]},
+            "glass": {"type": "dielectric", "ior": 1.5},
+            "mirror": {"type": "conductor", "specular": [0.9, 0.9, 0.9], "alpha": 0.0},
+            "lamp": {"type": "diffuse", "albedo": [0.8, 0.8, 0.8], "emission": [120, 110, 90]},
+        },
+        "shapes": shapes,
+    }
+
+
 def many_lights_scene():
     rooms, size, height = 8, 4.0, 3.0
     door_half, door_top = 0.5, 2.2
@@ -262,3 +304,4 @@ if __name__ == "__main__":
     write("window", window_scene())
     write("glossy", glossy_scene(os.path.join(HERE, "glossy")))
     write("many_lights", many_lights_scene())
+    write("caustic", caustic_scene(os.path.join(HERE, "caustic")))

@@ -7,6 +7,7 @@
 #   door, cornell:   pt, nee, guided, guided-nee          (the directional guide)
 #   window:          nee by luminance, nee with learned environment tiles, guided-nee with tiles
 #   many_lights:     nee with uniform, power and learned light selection
+#   caustic:         nee, guided-nee, bdpt, bdpt-guided    (reference by bdpt)
 #   veach-ajar:      nee, guided, guided-nee              (pbrt-v3, 1280 × 720)
 #   living-room:     nee by luminance and by tiles, guided and guided-nee with tiles (Mitsuba)
 #   modern-hall:     nee with uniform, power and learned light selection (Mitsuba, at
@@ -22,7 +23,7 @@ seconds=${1:-60}
 reference_spp=${2:-2048}
 shift $(( $# > 2 ? 2 : $# ))
 scenes=("$@")
-[ ${#scenes[@]} -gt 0 ] || scenes=(door cornell window many_lights veach-ajar living-room modern-hall)
+[ ${#scenes[@]} -gt 0 ] || scenes=(door cornell window many_lights caustic veach-ajar living-room modern-hall)
 cargo build --release -p reference-tracer --features embree
 lodestar=./target/release/lodestar
 mkdir -p out/references
@@ -34,6 +35,8 @@ for scene in "${scenes[@]}"; do
     case $scene in
         window) methods=nee+luminance,nee+tiles,guided-nee+tiles; reference_args=(--env-sampling tiles) ;;
         many_lights) methods=nee:uniform,nee:power,nee:learned; reference_args=(--light-selection learned) ;;
+        # Light reaches the diffuse surfaces through glass: only bidirectional methods converge.
+        caustic) methods=nee,guided-nee,bdpt,bdpt-guided; reference_args=(--integrator bdpt) ;;
         veach-ajar) methods=nee,guided,guided-nee; file=scenes/$scene/scene.pbrt ;;
         living-room) methods=nee+luminance,nee+tiles,guided+tiles,guided-nee+tiles; file=scenes/$scene/scene.xml ;;
         modern-hall)

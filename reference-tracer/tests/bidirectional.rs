@@ -87,6 +87,25 @@ fn guided_bdpt_renders_cornell_and_glossy_as_nee_does() {
     agrees_with_nee_guided("glossy, bdpt-guided grid", &glossy, 512, guided, Some(grid.into()));
 }
 
+/// The caustic scene: light reaches every diffuse surface through a glass ball, which
+/// next-event estimation cannot see through. bdpt's mean agrees with nee's, and its
+/// per-pixel noise is a fraction of nee's at the same sample count (its light subpaths
+/// carry the caustic).
+#[test]
+fn bdpt_renders_the_caustic_scene_with_a_fraction_of_nees_noise() {
+    let scene = repository_scene("caustic", 16, 16);
+    let spp = 512;
+    let (nee, nee_stats) = render_image(&scene, settings(Method::Nee), None, spp, 41);
+    let (nee_again, _) = render_image(&scene, settings(Method::Nee), None, spp, 42);
+    let (bdpt, bdpt_stats) = render_image(&scene, settings(Method::Bdpt), None, spp, 43);
+    let (bdpt_again, _) = render_image(&scene, settings(Method::Bdpt), None, spp, 44);
+    assert_agree("caustic, bdpt against nee", &mean_estimate(&bdpt_stats), &mean_estimate(&nee_stats));
+    let nee_noise = relative_difference(&nee, &nee_again);
+    let bdpt_noise = relative_difference(&bdpt, &bdpt_again);
+    eprintln!("caustic: nee noise {nee_noise:.3e}, bdpt noise {bdpt_noise:.3e}");
+    assert!(bdpt_noise < 0.25 * nee_noise, "bdpt {bdpt_noise:.3e} against nee {nee_noise:.3e}");
+}
+
 #[test]
 fn bdpt_refuses_what_it_cannot_render() {
     let window = repository_scene("window", 16, 16);
