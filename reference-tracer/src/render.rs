@@ -116,6 +116,9 @@ impl Progress<'_> {
 pub struct Learners<'a, G: Guide = HemisphereGrid> {
     /// The directional guide (guided methods).
     pub directions: Option<&'a mut G>,
+    /// W, the importance bdpt-guided's light subpaths learn and are guided by (a guide of
+    /// the same structure as `directions`).
+    pub importance: Option<&'a mut G>,
     /// The focal guide (guided methods with a focal probability above 0).
     pub focal: Option<&'a mut FocalGuide>,
     /// The directional guide's learned share per region (`learned_guide_share`).
@@ -130,7 +133,15 @@ pub struct Learners<'a, G: Guide = HemisphereGrid> {
 
 impl<G: Guide> Default for Learners<'_, G> {
     fn default() -> Self {
-        Self { directions: None, focal: None, guide_shares: None, lights: None, gate: None, environment: None }
+        Self {
+            directions: None,
+            importance: None,
+            focal: None,
+            guide_shares: None,
+            lights: None,
+            gate: None,
+            environment: None,
+        }
     }
 }
 
@@ -145,6 +156,7 @@ pub fn render<I: Intersector, G: Guide>(
 ) -> (Image, RenderStatistics) {
     let Learners {
         directions: mut guide,
+        mut importance,
         mut focal,
         mut guide_shares,
         lights: mut light_guide,
@@ -180,6 +192,7 @@ pub fn render<I: Intersector, G: Guide>(
         )
         .with_guide_shares(guide_shares.as_deref())
         .with_gate(gate.as_deref())
+        .with_importance_guide(importance.as_deref())
         .with_connection_threshold(settings.integrator.connection_roulette * mean_luminance(&statistics.pass_means));
         let pass_seed = pass_seed(settings.seed, pass);
         let (counters, pass_sum) = if settings.integrator.method.splats() {
@@ -200,6 +213,9 @@ pub fn render<I: Intersector, G: Guide>(
         if settings.integrator.method.uses_guide() && refits {
             if let Some(guide) = guide.as_deref_mut() {
                 guide.rebuild_sampling();
+            }
+            if let Some(importance) = importance.as_deref_mut() {
+                importance.rebuild_sampling();
             }
             if let Some(focal) = focal.as_deref_mut() {
                 focal.rebuild_sampling();

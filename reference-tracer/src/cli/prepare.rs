@@ -80,6 +80,11 @@ pub struct Prepared {
     pub intersector: SceneIntersector,
     /// The directional guide, for guided methods.
     pub guide: Option<DirectionalGuide>,
+    /// What `guide` was built from (a fresh one of the same settings learns W).
+    pub guide_settings: Option<DirectionalGuideSettings>,
+    /// W, the importance bdpt-guided's light subpaths learn and are guided by: a guide of
+    /// the same structure and settings as `guide`, built at the first bdpt-guided render.
+    pub importance_guide: Option<DirectionalGuide>,
     /// The focal guide, built at the first render of a guided method that aims at it.
     pub focal_guide: Option<FocalGuide>,
     /// The directional guide's learned shares, built at the first render that learns them.
@@ -241,28 +246,54 @@ impl Prepared {
         let lights = self.light_guide.as_mut();
         let gate = self.gate.as_mut();
         let environment = self.environment_guide.as_mut();
+        let bidirectional_guided = guided && settings.integrator.method.bidirectional();
+        if bidirectional_guided && self.importance_guide.is_none() {
+            if let Some(guide_settings) = self.guide_settings {
+                self.importance_guide = Some(DirectionalGuide::build(&self.scene, guide_settings)?);
+            }
+        }
+        let importance = self.importance_guide.as_mut().filter(|_| bidirectional_guided);
         let (scene, intersector) = (&self.scene, &self.intersector);
         Ok(match self.guide.as_mut().filter(|_| guided) {
             Some(DirectionalGuide::Hemisphere(guide)) => {
-                let learners =
-                    Learners { directions: Some(guide.as_mut()), focal, guide_shares, lights, gate, environment };
+                let importance = match importance {
+                    Some(DirectionalGuide::Hemisphere(w)) => Some(w.as_mut()),
+                    _ => None,
+                };
+                let directions = Some(guide.as_mut());
+                let learners = Learners { directions, importance, focal, guide_shares, lights, gate, environment };
                 render(scene, intersector, learners, settings, &mut on_pass)
             }
             Some(DirectionalGuide::Volume(guide)) => {
-                let learners = Learners { directions: Some(guide), focal, guide_shares, lights, gate, environment };
+                let importance = match importance {
+                    Some(DirectionalGuide::Volume(w)) => Some(w),
+                    _ => None,
+                };
+                let directions = Some(guide);
+                let learners = Learners { directions, importance, focal, guide_shares, lights, gate, environment };
                 render(scene, intersector, learners, settings, &mut on_pass)
             }
             Some(DirectionalGuide::Mixture(guide)) => {
-                let learners = Learners { directions: Some(guide), focal, guide_shares, lights, gate, environment };
+                let importance = match importance {
+                    Some(DirectionalGuide::Mixture(w)) => Some(w),
+                    _ => None,
+                };
+                let directions = Some(guide);
+                let learners = Learners { directions, importance, focal, guide_shares, lights, gate, environment };
                 render(scene, intersector, learners, settings, &mut on_pass)
             }
             Some(DirectionalGuide::Tree(guide)) => {
-                let learners = Learners { directions: Some(guide), focal, guide_shares, lights, gate, environment };
+                let importance = match importance {
+                    Some(DirectionalGuide::Tree(w)) => Some(w),
+                    _ => None,
+                };
+                let directions = Some(guide);
+                let learners = Learners { directions, importance, focal, guide_shares, lights, gate, environment };
                 render(scene, intersector, learners, settings, &mut on_pass)
             }
             None => {
                 let learners: Learners<'_, HemisphereGrid> =
-                    Learners { directions: None, focal, guide_shares, lights, gate, environment };
+                    Learners { directions: None, importance: None, focal, guide_shares, lights, gate, environment };
                 render(scene, intersector, learners, settings, &mut on_pass)
             }
         })
@@ -354,6 +385,7 @@ pub fn prepare_with_lights(
     let start = Instant::now();
     let mut plan =
         GuidePlan::new(&scene, guide.is_some(), lights.next_event_estimation, lights.selection, lights.environment);
+    let guide_settings = guide.filter(|_| plan.directions);
     let guide = match guide {
         Some(settings) if plan.directions => {
             let guide = DirectionalGuide::build(&scene, settings)?;
@@ -419,6 +451,8 @@ pub fn prepare_with_lights(
         scene,
         intersector,
         guide,
+        guide_settings,
+        importance_guide: None,
         light_guide,
         gate,
         environment_guide,

@@ -55,9 +55,12 @@ pub struct SubpathVertex<R> {
     pdf_rev: f32,
     /// Whether the direction sampled here came from a delta lobe.
     delta: bool,
-    /// bdpt-guided: the guide's region here (surfaces whose lobes are not all delta),
-    /// which the camera side's sampling mixes in.
+    /// bdpt-guided: Q's region here (surfaces whose lobes are not all delta), which the
+    /// camera side's sampling mixes in.
     region: Option<R>,
+    /// bdpt-guided: W's region here (the same surfaces, and light origins), which the
+    /// light side's sampling mixes in.
+    importance_region: Option<R>,
     /// Density per steradian of the direction sampled here (what the guide learns with).
     scatter_pdf: f32,
 }
@@ -76,6 +79,7 @@ impl<R: Copy> SubpathVertex<R> {
             pdf_rev: 0.0,
             delta: false,
             region: None,
+            importance_region: None,
             scatter_pdf: 0.0,
         }
     }
@@ -158,11 +162,22 @@ pub struct BidirectionalScratch<R> {
     /// the previous vertex, MIS-weighted against scattering (luminance; learning only).
     direct: Vec<f32>,
     recorder: PathRecorder<R>,
+    /// Per light vertex, the importance its camera connection (t = 1) reflects back
+    /// towards the previous light vertex (luminance; learning W only).
+    eye: Vec<f32>,
+    light_recorder: PathRecorder<R>,
 }
 
 impl<R: Copy> Default for BidirectionalScratch<R> {
     fn default() -> Self {
-        Self { camera: Vec::new(), light: Vec::new(), direct: Vec::new(), recorder: PathRecorder::new() }
+        Self {
+            camera: Vec::new(),
+            light: Vec::new(),
+            direct: Vec::new(),
+            recorder: PathRecorder::new(),
+            eye: Vec::new(),
+            light_recorder: PathRecorder::new(),
+        }
     }
 }
 
@@ -196,13 +211,18 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
         counters: &mut PathCounters,
     ) {
         counters.paths += 1;
-        let BidirectionalScratch { camera, light, direct, recorder } = scratch;
+        let BidirectionalScratch { camera, light, direct, recorder, eye, light_recorder } = scratch;
         self.camera_subpath(x, y, rng, camera, counters);
         self.light_subpath(rng, light, counters);
         let learning = self.settings.learn && self.guide.is_some();
         if learning {
             direct.clear();
             direct.resize(camera.len(), 0.0);
+        }
+        let learning_importance = self.settings.learn && self.importance.is_some();
+        if learning_importance {
+            eye.clear();
+            eye.resize(light.len(), 0.0);
         }
         let width = self.scene.camera.width as usize;
         let pixel = y as usize * width + x as usize;
@@ -240,6 +260,9 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
                         direct[t - 1] = self.learned_direct_light(camera, t, sampled, value);
                     }
                 }
+                if learning_importance && t == 1 {
+                    eye[s - 1] = luminance(value) / luminance(light[s - 1].beta).max(f32::MIN_POSITIVE);
+                }
                 value *= self.mis_weight(camera, light, connection.sampled.as_ref(), s, t);
                 if !(value.is_finite() && value.max_element() > 0.0) {
                     continue;
@@ -255,6 +278,49 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
         if learning {
             self.teach_camera_subpath(camera, direct, recorder);
         }
+        if learning_importance {
+            self.teach_light_subpath(light, eye, light_recorder);
+        }
+    }
+
+    /// Teaches W what the light subpath found (bdpt-guided, learning passes): Eq. (1)
+    /// with the roles swapped, as `light-guided` learns it. Each vertex's target is the
+    /// importance the next vertex's camera connection reflects back, plus the next
+    /// vertex's own target carried back by its scattering factor.
+    fn teach_light_subpath(
+        &self,
+        light: &[SubpathVertex<G::Region>],
+        eye: &[f32],
+        recorder: &mut PathRecorder<G::Region>,
+    ) {
+        let Some(importance) = self.importance else { return };
+        recorder.clear();
+        for j in 0..light.len() {
+            let vertex = &light[j];
+            if j >= 1 {
+                recorder.arrive(eye[j]);
+                if j + 1 < light.len() {
+                    let ratio = luminance(light[j + 1].beta) / luminance(vertex.beta).max(f32::MIN_POSITIVE);
+                    recorder.carry(ratio);
+                }
+            }
+            if j + 1 < light.len() {
+                let next = &light[j + 1];
+                let offset = next.point - vertex.point;
+                let distance = offset.length();
+                let region = vertex.importance_region.filter(|_| !vertex.delta);
+                recorder.scattered(
+                    region,
+                    vertex.point,
+                    offset / distance,
+                    vertex.scatter_pdf,
+                    luminance(next.beta),
+                    (),
+                );
+                recorder.reached(distance);
+            }
+        }
+        recorder.learn(importance, self.settings.density_weighted_learning);
     }
 
     /// The light sample of camera vertex t − 1 (its contribution `value`, unweighted,
@@ -370,13 +436,26 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
         }
         let mut start = SubpathVertex::new(VertexKind::Light, origin, normal, emission / position_pdf, position_pdf);
         start.light = Some(light);
-        path.push(start);
-        let direction = Frame::from_normal(normal).to_world(cosine_direction(rng.next_vec2()));
+        start.importance_region = self.emission_region(origin, normal);
+        // Leave by the cosine about the normal or, in bdpt-guided, by W.
+        let p_guide = self.guide_share(Side::Light);
+        let distribution = match (self.importance, start.importance_region) {
+            (Some(importance), Some(region)) if p_guide > 0.0 => Some(importance.distribution(region)),
+            _ => None,
+        };
+        let (u_choice, u) = (rng.next_f32(), rng.next_vec2());
+        let direction = match &distribution {
+            Some(d) if u_choice < p_guide => d.sample(u).direction,
+            _ => Frame::from_normal(normal).to_world(cosine_direction(u)),
+        };
         let cos_light = direction.dot(normal);
-        let pdf_dir = cos_light * std::f32::consts::FRAC_1_PI;
+        let pdf_dir = self.emission_direction_pdf(&start, direction);
         if !(cos_light > 0.0 && pdf_dir > 0.0) {
+            path.push(start);
             return;
         }
+        start.scatter_pdf = pdf_dir;
+        path.push(start);
         let beta = emission * (cos_light / (position_pdf * pdf_dir));
         let ray = Ray::new(self.spawn(origin, normal, direction), direction);
         self.random_walk(ray, beta, Side::Light, rng, path, counters);
@@ -404,7 +483,7 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
         counters: &mut PathCounters,
     ) {
         let max_vertices = self.settings.max_depth as usize + usize::from(side == Side::Camera);
-        let p_guide = if side == Side::Camera { self.bidirectional_guide_share() } else { 0.0 };
+        let p_guide = self.guide_share(side);
         // Russian roulette by the throughput relative to the subpath's start.
         let mut relative = Vec3::ONE;
         while path.len() < max_vertices {
@@ -419,9 +498,12 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
             if surface.material.is_emissive() {
                 vertex.light = self.scene.lights.light_at(hit.primitive, hit.barycentrics);
             }
-            // Both sides locate: a light vertex's camera-side density needs its region.
-            if let (Some(guide), false) = (self.guide, surface.material.is_delta()) {
-                vertex.region = guide.locate(surface.point, surface.shading.frame.normal);
+            // Both sides locate in both guides: a vertex's density for the other side's
+            // sampling needs that side's region.
+            if !surface.material.is_delta() {
+                let normal = surface.shading.frame.normal;
+                vertex.region = self.guide.and_then(|guide| guide.locate(surface.point, normal));
+                vertex.importance_region = self.importance.and_then(|w| w.locate(surface.point, normal));
             }
             let k = path.len();
             let previous = path[k - 1];
@@ -446,7 +528,11 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
             }
             let (u_choice, u, u_lobe) = (rng.next_f32(), rng.next_vec2(), rng.next_f32());
             let (material, shading, wo) = (&surface.material, &surface.shading, surface.wo);
-            let distribution = match (self.guide, vertex.region) {
+            let (guide, region) = match side {
+                Side::Camera => (self.guide, vertex.region),
+                Side::Light => (self.importance, vertex.importance_region),
+            };
+            let distribution = match (guide, region) {
                 (Some(guide), Some(region)) if p_guide > 0.0 => Some(guide.distribution(region)),
                 _ => None,
             };
@@ -459,7 +545,11 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
                         sample.wi
                     };
                     let pdf = p_guide * d.pdf(wi) + (1.0 - p_guide) * material.pdf(shading, wo, wi);
-                    (wi, material.eval(shading, wo, wi) / pdf, pdf)
+                    let f = match side {
+                        Side::Camera => material.eval(shading, wo, wi),
+                        Side::Light => material.eval(shading, wo, wi) * shading_correction(shading, wo, wi),
+                    };
+                    (wi, f / pdf, pdf)
                 }
                 None => {
                     let Some(sample) = material.sample(shading, wo, u, u_lobe) else { break };
@@ -481,13 +571,23 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
         }
     }
 
-    /// bdpt-guided's share of the guide in the camera subpath's sampling (0 unguided).
-    fn bidirectional_guide_share(&self) -> f32 {
-        if self.guide.is_some() {
+    /// bdpt-guided's share of the guide in `side`'s sampling: Q's on the camera side, W's
+    /// on the light side (0 unguided).
+    fn guide_share(&self, side: Side) -> f32 {
+        let guided = match side {
+            Side::Camera => self.guide.is_some(),
+            Side::Light => self.importance.is_some(),
+        };
+        if guided {
             self.settings.guide_probability
         } else {
             0.0
         }
+    }
+
+    /// W's region at a light origin (`point` on an emitter of front normal `normal`).
+    fn emission_region(&self, point: Vec3, normal: Vec3) -> Option<G::Region> {
+        self.importance.and_then(|w| w.locate(point, normal))
     }
 
     /// Strategy (s, t) before its shadow ray: the unweighted contribution if nothing
@@ -545,6 +645,7 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
             let mut sampled =
                 SubpathVertex::new(VertexKind::Light, point, normal, emission / position_pdf, position_pdf);
             sampled.light = Some(index);
+            sampled.importance_region = self.emission_region(point, normal);
             let shadow = Shadow::Segment { from: pt.point, normal: pt.normal, to: point };
             return Some(Connection { value, sampled: Some(sampled), pixel: None, shadow });
         }
@@ -613,8 +714,12 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
                 (Some((material, shading)), Some(previous)) => {
                     let wo = (previous.point - vertex.point).normalize_or_zero();
                     let bsdf = material.pdf(&shading, wo, wi);
-                    let p_guide = if side == Side::Camera { self.bidirectional_guide_share() } else { 0.0 };
-                    match (self.guide, vertex.region) {
+                    let p_guide = self.guide_share(side);
+                    let (guide, region) = match side {
+                        Side::Camera => (self.guide, vertex.region),
+                        Side::Light => (self.importance, vertex.importance_region),
+                    };
+                    match (guide, region) {
                         (Some(guide), Some(region)) if p_guide > 0.0 => {
                             p_guide * guide.distribution(region).pdf(wi) + (1.0 - p_guide) * bsdf
                         }
@@ -628,9 +733,23 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
     }
 
     /// Density per steradian of a light subpath leaving emitter point `vertex` along
-    /// `wi` (cosine about its front normal).
+    /// `wi`: the cosine about its front normal, mixed in bdpt-guided with W there.
     fn emission_direction_pdf(&self, vertex: &SubpathVertex<G::Region>, wi: Vec3) -> f32 {
-        vertex.normal.dot(wi).max(0.0) * std::f32::consts::FRAC_1_PI
+        let cosine = vertex.normal.dot(wi).max(0.0) * std::f32::consts::FRAC_1_PI;
+        let p_guide = self.guide_share(Side::Light);
+        if p_guide <= 0.0 {
+            return cosine;
+        }
+        // Located as the light subpath locates it (a camera vertex on an emitter has
+        // none of its own as a light origin).
+        let region = match vertex.kind {
+            VertexKind::Light => vertex.importance_region,
+            _ => self.emission_region(vertex.point, vertex.normal),
+        };
+        match (self.importance, region) {
+            (Some(w), Some(region)) => p_guide * w.distribution(region).pdf(wi) + (1.0 - p_guide) * cosine,
+            _ => cosine,
+        }
     }
 
     /// Density per unit area with which a light subpath starts at emitter `vertex`.
@@ -774,8 +893,9 @@ mod tests {
         }
     }
 
-    /// The same with camera subpaths guided by a hemisphere grid that learned from
-    /// bdpt-guided's own samples: the guided densities enter every weight.
+    /// The same with camera subpaths guided by Q and light subpaths by W, two hemisphere
+    /// grids that learned from bdpt-guided's own samples: the guided densities of both
+    /// sides enter every weight.
     #[test]
     fn guided_mis_weights_of_every_path_sum_to_one() {
         for name in ["cornell", "glossy"] {
@@ -783,6 +903,7 @@ mod tests {
             let intersector = SceneIntersector::build(&scene.triangles, IntersectorChoice::default()).unwrap();
             let grid_settings = guiding_core::HemisphereGridSettings { probe_count: Some(40), ..Default::default() };
             let mut grid = HemisphereGrid::build(&scene.triangles, grid_settings).unwrap();
+            let mut importance = HemisphereGrid::build(&scene.triangles, grid_settings).unwrap();
             let settings = IntegratorSettings {
                 method: Method::BdptGuided,
                 max_depth: 8,
@@ -792,7 +913,8 @@ mod tests {
             };
             // Learn for a few passes, so the guide is far from uniform.
             for pass in 0..4u64 {
-                let tracer = PathTracer::new(&scene, &intersector, Some(&grid), None, None, None, settings);
+                let tracer = PathTracer::new(&scene, &intersector, Some(&grid), None, None, None, settings)
+                    .with_importance_guide(Some(&importance));
                 let mut scratch = BidirectionalScratch::default();
                 let mut image = vec![Vec3::ZERO; 256];
                 let mut counters = PathCounters::default();
@@ -802,14 +924,15 @@ mod tests {
                     tracer.bidirectional_sample(xy, &mut rng, &mut image, &mut scratch, &mut counters);
                 }
                 grid.rebuild_sampling();
+                importance.rebuild_sampling();
             }
-            assert!(
-                grid.stats().accepted_updates > 1000,
-                "{name}: the grid learned {} updates",
-                grid.stats().accepted_updates
-            );
+            for (label, learned) in [("Q", &grid), ("W", &importance)] {
+                let updates = learned.stats().accepted_updates;
+                assert!(updates > 1000, "{name}: {label} learned {updates} updates");
+            }
             let frozen = IntegratorSettings { learn: false, ..settings };
-            let tracer = PathTracer::new(&scene, &intersector, Some(&grid), None, None, None, frozen);
+            let tracer = PathTracer::new(&scene, &intersector, Some(&grid), None, None, None, frozen)
+                .with_importance_guide(Some(&importance));
             weights_sum_to_one(&tracer, &format!("{name}, guided"));
         }
     }

@@ -136,6 +136,8 @@ pub struct PathTracer<'a, I: Intersector, G: Guide> {
     /// bdpt's connection roulette threshold (luminance of a weighted contribution; 0:
     /// every connection traced): see [`with_connection_threshold`](Self::with_connection_threshold).
     pub(super) connection_threshold: f32,
+    /// W, guiding bdpt-guided's light subpaths (see [`with_importance_guide`](Self::with_importance_guide)).
+    pub(super) importance: Option<&'a G>,
 }
 
 /// The surface a path reached, built once per hit: where it is, which way it faces,
@@ -215,12 +217,20 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             masks,
             carries_path,
             connection_threshold: 0.0,
+            importance: None,
         }
     }
 
     /// The settings it traces with.
     pub fn settings(&self) -> &IntegratorSettings {
         &self.settings
+    }
+
+    /// The tracer with W, the importance bdpt-guided's light subpaths learn and are
+    /// guided by (used by bdpt-guided only).
+    pub fn with_importance_guide(mut self, importance: Option<&'a G>) -> Self {
+        self.importance = importance.filter(|_| self.guide.is_some() && self.settings.method.bidirectional());
+        self
     }
 
     /// The tracer with bdpt's connection roulette: a connection whose weighted, unblocked
