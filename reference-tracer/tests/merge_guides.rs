@@ -157,6 +157,20 @@ fn light_and_environment_guides_save_merge_and_load() {
     let output = Command::new(env!("CARGO_BIN_EXE_lodestar")).args(&without).output().unwrap();
     let text = String::from_utf8_lossy(&output.stderr);
     assert!(!output.status.success() && text.contains("no learned light selection"), "{text}");
+    // A save the render cannot honour is refused before it renders: nothing is written.
+    let refused = path("refused.exr");
+    let guide_file = path("refused.guide");
+    let missing_folder = folder.join("missing").join("lights.bin").display().to_string();
+    let unguided = ["--integrator", "nee", "--save-guide", guide_file.as_str()];
+    let nowhere = [&lights[..], &["--save-light-guide", missing_folder.as_str()]].concat();
+    for (extra, expected) in [(&unguided[..], "no directional guide"), (&nowhere[..], "does not exist")] {
+        let mut args = vec!["render", cornell_text.as_str(), "--spp", "2", "--out", refused.as_str()];
+        args.extend_from_slice(extra);
+        let output = Command::new(env!("CARGO_BIN_EXE_lodestar")).args(&args).output().unwrap();
+        let text = String::from_utf8_lossy(&output.stderr);
+        assert!(!output.status.success() && text.contains(expected), "{text}");
+        assert!(!Path::new(&refused).exists(), "rendered before refusing: {text}");
+    }
 
     // Environment tiles on the window scene: the merge reads the guides against its map.
     let window = support::repository_scene("window", 24, 24);

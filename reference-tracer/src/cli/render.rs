@@ -122,6 +122,7 @@ pub(super) fn run_render(args: &RenderArgs) -> Result<(), String> {
         combine: options.combine,
         training_share: options.train_share,
     };
+    check_save_targets(args, &prepared)?;
     let (image, statistics, checkpoints) =
         pool.install(|| render_prepared(&mut prepared, &settings, reference.as_ref(), &[], true))?;
     write_outputs(&args.out, &image, args.pfm)?;
@@ -163,7 +164,7 @@ pub(super) fn run_render(args: &RenderArgs) -> Result<(), String> {
     }
     if let Some(path) = &args.save_guide {
         let Some(guide) = &prepared.guide else {
-            return Err(format!("--save-guide {}: this render has no directional guide", path.display()));
+            return Err(format!("--save-guide {}: {NO_GUIDE}", path.display()));
         };
         std::fs::write(path, guide.to_bytes()).map_err(|e| format!("--save-guide {}: {e}", path.display()))?;
         eprintln!("saved the guide to {}", path.display());
@@ -173,6 +174,8 @@ pub(super) fn run_render(args: &RenderArgs) -> Result<(), String> {
     Ok(())
 }
 
+/// Why a render has no directional guide to save.
+const NO_GUIDE: &str = "this render has no directional guide (a guided method and a --guide other than none)";
 /// Why a render has no light guide to load into or save.
 const NO_LIGHT_GUIDE: &str = "this render has no learned light selection (see the plan; --light-selection learned)";
 /// Why a render has no environment guide to load into or save.
@@ -201,6 +204,27 @@ fn load_sampling_guides(args: &RenderArgs, prepared: &mut Prepared) -> Result<()
         let loaded = EnvTileGuide::from_bytes(&bytes, built.tiles().clone(), built.sun().copied())
             .map_err(|e| format!("{flag} {}: {e}", path.display()))?;
         built.merge(&loaded).map_err(|e| format!("{flag} {}: {e}", path.display()))?;
+    }
+    Ok(())
+}
+
+/// The `--save-*` flags, checked before rendering so that a long render does not end
+/// in an error: each must name a guide this render builds, in a folder that exists.
+fn check_save_targets(args: &RenderArgs, prepared: &Prepared) -> Result<(), String> {
+    let targets = [
+        ("--save-guide", &args.save_guide, prepared.guide.is_some() && args.integrator.uses_guide(), NO_GUIDE),
+        ("--save-light-guide", &args.save_light_guide, prepared.light_guide.is_some(), NO_LIGHT_GUIDE),
+        ("--save-env-guide", &args.save_env_guide, prepared.environment_guide.is_some(), NO_ENV_GUIDE),
+    ];
+    for (flag, path, built, missing) in targets {
+        let Some(path) = path else { continue };
+        if !built {
+            return Err(format!("{flag} {}: {missing}", path.display()));
+        }
+        let folder = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+        if !folder.is_dir() {
+            return Err(format!("{flag} {}: the folder {} does not exist", path.display(), folder.display()));
+        }
     }
     Ok(())
 }
