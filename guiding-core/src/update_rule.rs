@@ -206,6 +206,35 @@ pub fn weighted_step(alpha: f32, weight: f32) -> f32 {
     }
 }
 
+#[cfg(any(feature = "hemisphere", feature = "mixture", feature = "tree", feature = "volume"))]
+/// An atomic counter one guide's count can be added to from another's.
+pub(crate) trait MergedCount {
+    fn add_count(&self, other: &Self);
+}
+
+#[cfg(any(feature = "hemisphere", feature = "mixture", feature = "tree", feature = "volume"))]
+impl MergedCount for AtomicU32 {
+    fn add_count(&self, other: &Self) {
+        self.fetch_add(other.load(Ordering::Relaxed), Ordering::Relaxed);
+    }
+}
+
+#[cfg(any(feature = "hemisphere", feature = "mixture", feature = "tree", feature = "volume"))]
+impl MergedCount for AtomicUsize {
+    fn add_count(&self, other: &Self) {
+        self.fetch_add(other.load(Ordering::Relaxed), Ordering::Relaxed);
+    }
+}
+
+/// Adds another guide's counts of rejected targets (`[non-finite, negative]`) to this
+/// one's, when the two merge.
+#[cfg(any(feature = "hemisphere", feature = "mixture", feature = "tree", feature = "volume"))]
+pub(crate) fn add_rejected_counts<C: MergedCount>(mine: [&C; 2], theirs: [&C; 2]) {
+    for (count, other) in mine.into_iter().zip(theirs) {
+        count.add_count(other);
+    }
+}
+
 /// `(1-α)·q + α·target`, evaluated in f64 so that neither term can overflow or lose the
 /// other, then clamped to `[floor, f32::MAX]`. With α = 0 the result is `q` exactly
 /// (clamped), with α = 1 it is `target` exactly (clamped).

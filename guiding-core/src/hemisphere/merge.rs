@@ -6,6 +6,7 @@ use core::sync::atomic::Ordering;
 use super::grid::{GridState, HemisphereGrid};
 use crate::atomic_f32;
 use crate::error::Error;
+use crate::update_rule::add_rejected_counts;
 
 impl HemisphereGrid {
     /// Adds what `other` learned to this grid, as if its updates had been made here: each
@@ -47,12 +48,10 @@ impl HemisphereGrid {
                 Ordering::Relaxed,
             );
         }
-        for (count, other_count) in [
-            (&self.rejected_non_finite, &other.rejected_non_finite),
-            (&self.rejected_negative, &other.rejected_negative),
-        ] {
-            count.fetch_add(other_count.load(Ordering::Relaxed), Ordering::Relaxed);
-        }
+        add_rejected_counts(
+            [&self.rejected_non_finite, &self.rejected_negative],
+            [&other.rejected_non_finite, &other.rejected_negative],
+        );
         self.epoch = self.epoch.max(other.epoch);
         self.build_cdfs(true);
         Ok(())

@@ -5,6 +5,7 @@ use core::sync::atomic::Ordering;
 
 use super::guide::GaussianMixture;
 use crate::error::Error;
+use crate::update_rule::add_rejected_counts;
 
 impl GaussianMixture {
     /// Adds what `other` learned. Both must cover the same box with the same settings,
@@ -34,12 +35,10 @@ impl GaussianMixture {
         for (mixture, theirs) in self.mixtures.iter_mut().zip(&other.mixtures) {
             mixture.merge(theirs);
         }
-        for (count, theirs) in [
-            (&self.rejected_non_finite, &other.rejected_non_finite),
-            (&self.rejected_negative, &other.rejected_negative),
-        ] {
-            count.fetch_add(theirs.load(Ordering::Relaxed), Ordering::Relaxed);
-        }
+        add_rejected_counts(
+            [&self.rejected_non_finite, &self.rejected_negative],
+            [&other.rejected_non_finite, &other.rejected_negative],
+        );
         self.epoch = self.epoch.max(other.epoch);
         Ok(())
     }

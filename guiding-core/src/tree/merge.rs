@@ -3,7 +3,6 @@
 //! weighted by the records their leaves learned from.
 
 use alloc::vec::Vec;
-use core::sync::atomic::Ordering;
 
 use super::axis::{rotated_cells, LeafCounts, ROTATED_SIDE};
 use super::guide::{bytes_for, SpatialDirectionalTree, SpatialLeaf};
@@ -11,6 +10,7 @@ use super::quadtree::{self, QuadNode, NODE_BYTES};
 use super::spatial::{Parent, SpatialNode, LEAF};
 use crate::atomic_f32;
 use crate::error::Error;
+use crate::update_rule::add_rejected_counts;
 
 /// One leaf of the union: the leaf of each tree its box lies in, and the share of that
 /// leaf's box it covers (1, or a half per split the other tree made below it).
@@ -143,12 +143,10 @@ impl SpatialDirectionalTree {
         self.quad = quad;
         self.epoch = self.epoch.max(other.epoch);
         self.accepted_before = self.accepted_before.saturating_add(other.accepted_before);
-        for (count, theirs) in [
-            (&self.rejected_non_finite, &other.rejected_non_finite),
-            (&self.rejected_negative, &other.rejected_negative),
-        ] {
-            count.fetch_add(theirs.load(Ordering::Relaxed), Ordering::Relaxed);
-        }
+        add_rejected_counts(
+            [&self.rejected_non_finite, &self.rejected_negative],
+            [&other.rejected_non_finite, &other.rejected_negative],
+        );
         Ok(())
     }
 }

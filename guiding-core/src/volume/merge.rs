@@ -6,6 +6,7 @@ use core::sync::atomic::Ordering;
 use super::guide::{IrradianceVolume, LEAF};
 use crate::atomic_f32;
 use crate::error::Error;
+use crate::update_rule::add_rejected_counts;
 
 impl IrradianceVolume {
     /// Adds what `other` learned. Both must cover the same box with the same settings
@@ -37,12 +38,10 @@ impl IrradianceVolume {
         for cell in 0..self.grid.cell_count() {
             self.merge_entry(cell as u32, other, other.nodes[cell], 1);
         }
-        for (count, theirs) in [
-            (&self.rejected_non_finite, &other.rejected_non_finite),
-            (&self.rejected_negative, &other.rejected_negative),
-        ] {
-            count.fetch_add(theirs.load(Ordering::Relaxed), Ordering::Relaxed);
-        }
+        add_rejected_counts(
+            [&self.rejected_non_finite, &self.rejected_negative],
+            [&other.rejected_non_finite, &other.rejected_negative],
+        );
         self.epoch = self.epoch.max(other.epoch);
         self.build_cdfs(true);
         Ok(())
