@@ -4,7 +4,7 @@
 //! standard errors and, quadrant by quadrant, within a few per cent (a splat in the
 //! wrong pixel, a wrong weight or a density left out shows there). That the weights of
 //! every path sum to one is checked beside the integrator
-//! (`integrator::bidirectional::tests`), guided and unguided.
+//! (`integrator::bidirectional::mis::tests`), guided and unguided.
 
 mod support;
 
