@@ -47,15 +47,7 @@ fn light_tracing_refuses_what_it_cannot_render() {
     let lights = reference_tracer::cli::LightRequest::new(None, None, false);
     let choice = reference_tracer::scene_intersector::IntersectorChoice::default();
     let mut prepared = reference_tracer::cli::prepare_with_lights(&glossy, choice, None, lights).unwrap();
-    let render = reference_tracer::render::RenderSettings {
-        integrator: settings(Method::Light),
-        budget: reference_tracer::render::Budget::SamplesPerPixel(1),
-        seed: 1,
-        train_seconds: 0.0,
-        schedule: support::Schedule::Online,
-        combine: reference_tracer::film::Combine::default(),
-        training_share: reference_tracer::schedule::DEFAULT_TRAINING_SHARE,
-    };
+    let render = support::render_settings(settings(Method::Light), 1, 1, Schedule::Online);
     let error = prepared.render(&render, |_| {}).unwrap_err();
     assert!(error.contains("delta triangles"), "{error}");
     let window = repository_scene("window", 16, 16);

@@ -132,7 +132,12 @@ pub fn render_scheduled(
         integrator.method.uses_nee(),
     );
     let mut prepared = prepare_with_lights(scene, IntersectorChoice::default(), guide, lights).unwrap();
-    let settings = RenderSettings {
+    prepared.render(&render_settings(integrator, spp, seed, schedule), |_| {}).unwrap()
+}
+
+/// What a render of `spp` passes of `integrator` under `schedule` runs with.
+pub fn render_settings(integrator: IntegratorSettings, spp: u32, seed: u64, schedule: Schedule) -> RenderSettings {
+    RenderSettings {
         integrator,
         budget: Budget::SamplesPerPixel(spp),
         seed,
@@ -140,8 +145,7 @@ pub fn render_scheduled(
         schedule,
         combine: reference_tracer::film::Combine::default(),
         training_share: reference_tracer::schedule::DEFAULT_TRAINING_SHARE,
-    };
-    prepared.render(&settings, |_| {}).unwrap()
+    }
 }
 
 /// Mean squared difference of two images relative to their mean, over pixels and

@@ -18,6 +18,21 @@ use crate::camera::EyeConnection;
 use crate::color::luminance;
 use crate::material::{Material, ShadingFrame, Surface};
 
+/// The start of a light path.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct LightOrigin {
+    /// The light's index.
+    pub(super) light: u32,
+    /// Its emitted radiance.
+    pub(super) emission: Vec3,
+    /// The point on it.
+    pub(super) point: Vec3,
+    /// Its front normal there.
+    pub(super) normal: Vec3,
+    /// Density of the point per unit area, the light's selection included.
+    pub(super) position_pdf: f32,
+}
+
 /// Veach's correction of shading normals for light carried from `from` (towards the
 /// previous vertex) to `to`: |from·n_s||to·n_g| / (|from·n_g||to·n_s|), which makes the
 /// adjoint BSDF of a shading-normal frame transport importance as the forward one
@@ -47,19 +62,11 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
         let learning = settings.learn && self.guide.is_some();
         let p_guide = if self.guide.is_some() { settings.guide_probability } else { 0.0 };
         path.clear();
-        let lights = &self.scene.lights;
         let camera = &self.scene.camera;
         counters.paths += 1;
-        if lights.is_empty() {
+        let Some(LightOrigin { emission, point: origin, normal, position_pdf, .. }) = self.light_origin(rng) else {
             return;
-        }
-        let (light, selection) = lights.select_by_power(rng.next_f32());
-        let (_, emission, area) = lights.light(light);
-        let Some((origin, normal)) = lights.emission_point(light, rng.next_vec2()) else { return };
-        let position_pdf = selection / area;
-        if !(position_pdf > 0.0 && normal != Vec3::ZERO) {
-            return;
-        }
+        };
         let width = camera.width as usize;
         let mut contributed = false;
         // The light itself, seen by the camera.
@@ -149,23 +156,10 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
                 (Some(guide), Some(region)) => Some(guide.distribution(region)),
                 _ => None,
             };
-            let (to, factor, pdf) = match &distribution {
-                Some(d) => {
-                    let to = if u_choice < p_guide {
-                        d.sample(u).direction
-                    } else {
-                        let Some(sample) = material.sample(shading, from, u, u_lobe) else { break };
-                        sample.wi
-                    };
-                    let pdf = p_guide * d.pdf(to) + (1.0 - p_guide) * material.pdf(shading, from, to);
-                    let f = material.eval(shading, from, to) * shading_correction(shading, from, to);
-                    (to, f / pdf, pdf)
-                }
-                None => {
-                    let Some(sample) = material.sample(shading, from, u, u_lobe) else { break };
-                    let factor = importance_weight(material, shading, from, sample.wi, sample.weight);
-                    (sample.wi, factor, sample.pdf)
-                }
+            let scattering = Scattering { material, shading, wo: from, importance: true };
+            let Some((to, factor, pdf)) = scattering.sample(distribution.as_ref(), p_guide, (u_choice, u, u_lobe))
+            else {
+                break;
             };
             if !(factor.is_finite() && factor.max_element() > 0.0 && pdf > 0.0) {
                 break;
@@ -180,6 +174,26 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
             ray = Ray::new(self.spawn(point, geometric_normal, to), to);
         }
         self.finish_light_path(path, contributed, counters);
+    }
+
+    /// Where a light path starts: a light picked by power, a point uniform on it (`None`
+    /// where the scene has no light or the point no density or normal).
+    pub(super) fn light_origin(&self, rng: &mut Pcg32) -> Option<LightOrigin> {
+        let lights = &self.scene.lights;
+        if lights.is_empty() {
+            return None;
+        }
+        let (light, selection) = lights.select_by_power(rng.next_f32());
+        let (_, emission, area) = lights.light(light);
+        let (point, normal) = lights.emission_point(light, rng.next_vec2())?;
+        let position_pdf = selection / area;
+        (position_pdf > 0.0 && normal != Vec3::ZERO).then_some(LightOrigin {
+            light,
+            emission,
+            point,
+            normal,
+            position_pdf,
+        })
     }
 
     /// Counts a finished light path and teaches its targets to the guide (when learning).
@@ -234,6 +248,46 @@ pub(super) fn importance_weight(
         }
         Surface::ThinDielectric { .. } => weight,
         _ => weight * shading_correction(shading, from, to),
+    }
+}
+
+/// A surface scattering a path that arrived from `wo`, in radiance transport or (with
+/// `importance`) in importance transport, for [`sample`](Self::sample).
+pub(super) struct Scattering<'a> {
+    pub(super) material: &'a Material,
+    pub(super) shading: &'a ShadingFrame,
+    pub(super) wo: Vec3,
+    pub(super) importance: bool,
+}
+
+impl Scattering<'_> {
+    /// A direction from the one-sample mixture of `distribution` (probability
+    /// `p_guide`) and the BSDF, with its factor f·cos/pdf (importance transport: the
+    /// adjoint shading-normal correction, refraction unscaled) and the mixture's pdf per
+    /// steradian; `None` where the BSDF draws nothing.
+    pub(super) fn sample<D: DirectionalDistribution>(
+        &self,
+        distribution: Option<&D>,
+        p_guide: f32,
+        (u_choice, u, u_lobe): (f32, Vec2, f32),
+    ) -> Option<(Vec3, Vec3, f32)> {
+        let Scattering { material, shading, wo, importance } = *self;
+        let Some(d) = distribution else {
+            let sample = material.sample(shading, wo, u, u_lobe)?;
+            let factor = if importance {
+                importance_weight(material, shading, wo, sample.wi, sample.weight)
+            } else {
+                sample.weight
+            };
+            return Some((sample.wi, factor, sample.pdf));
+        };
+        let wi = if u_choice < p_guide { d.sample(u).direction } else { material.sample(shading, wo, u, u_lobe)?.wi };
+        let pdf = p_guide * d.pdf(wi) + (1.0 - p_guide) * material.pdf(shading, wo, wi);
+        let mut f = material.eval(shading, wo, wi);
+        if importance {
+            f *= shading_correction(shading, wo, wi);
+        }
+        Some((wi, f / pdf, pdf))
     }
 }
 

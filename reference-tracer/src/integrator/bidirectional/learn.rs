@@ -63,26 +63,9 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
                     }
                 }
                 recorder.arrive(direct[k]);
-                if k + 1 < camera.len() {
-                    let ratio = luminance(camera[k + 1].beta) / luminance(vertex.beta).max(f32::MIN_POSITIVE);
-                    recorder.carry(ratio);
-                }
+                carry_back(recorder, camera, k);
             }
-            if k + 1 < camera.len() {
-                let next = &camera[k + 1];
-                let offset = next.point - vertex.point;
-                let distance = offset.length();
-                let region = vertex.region.filter(|_| !vertex.delta);
-                recorder.scattered(
-                    region,
-                    vertex.point,
-                    offset / distance,
-                    vertex.scatter_pdf,
-                    luminance(next.beta),
-                    (),
-                );
-                recorder.reached(distance);
-            }
+            record_scattering(recorder, camera, k, vertex.region);
         }
         recorder.learn(guide, self.settings.density_weighted_learning);
     }
@@ -103,27 +86,30 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
             let vertex = &light[j];
             if j >= 1 {
                 recorder.arrive(eye[j]);
-                if j + 1 < light.len() {
-                    let ratio = luminance(light[j + 1].beta) / luminance(vertex.beta).max(f32::MIN_POSITIVE);
-                    recorder.carry(ratio);
-                }
+                carry_back(recorder, light, j);
             }
-            if j + 1 < light.len() {
-                let next = &light[j + 1];
-                let offset = next.point - vertex.point;
-                let distance = offset.length();
-                let region = vertex.importance_region.filter(|_| !vertex.delta);
-                recorder.scattered(
-                    region,
-                    vertex.point,
-                    offset / distance,
-                    vertex.scatter_pdf,
-                    luminance(next.beta),
-                    (),
-                );
-                recorder.reached(distance);
-            }
+            record_scattering(recorder, light, j, vertex.importance_region);
         }
         recorder.learn(importance, self.settings.density_weighted_learning);
     }
+}
+
+/// Vertex `k` of `path` passes its own target back to the vertex before it, scaled by
+/// its scattering factor (the throughput's ratio, 1/survival included), where it
+/// scattered on.
+fn carry_back<R: Copy>(recorder: &mut PathRecorder<R>, path: &[SubpathVertex<R>], k: usize) {
+    if let Some(next) = path.get(k + 1) {
+        recorder.carry(luminance(next.beta) / luminance(path[k].beta).max(f32::MIN_POSITIVE));
+    }
+}
+
+/// Records vertex `k` of `path` as scattering towards vertex k + 1 (where there is one),
+/// learning in `region` unless it scattered by a delta lobe.
+fn record_scattering<R: Copy>(recorder: &mut PathRecorder<R>, path: &[SubpathVertex<R>], k: usize, region: Option<R>) {
+    let (vertex, Some(next)) = (&path[k], path.get(k + 1)) else { return };
+    let offset = next.point - vertex.point;
+    let distance = offset.length();
+    let region = region.filter(|_| !vertex.delta);
+    recorder.scattered(region, vertex.point, offset / distance, vertex.scatter_pdf, luminance(next.beta), ());
+    recorder.reached(distance);
 }

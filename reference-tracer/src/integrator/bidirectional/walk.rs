@@ -6,7 +6,7 @@ use guiding_core::{DirectionalDistribution, Frame, Guide, Intersector, Pcg32, Ra
 
 use super::vertex::{Side, SubpathVertex, VertexKind};
 use crate::integrator::counters::PathCounters;
-use crate::integrator::light_path::{cosine_direction, importance_weight, shading_correction};
+use crate::integrator::light_path::{cosine_direction, LightOrigin, Scattering};
 use crate::integrator::tracer::PathTracer;
 
 impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
@@ -37,17 +37,9 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
         counters: &mut PathCounters,
     ) {
         path.clear();
-        let lights = &self.scene.lights;
-        if lights.is_empty() {
+        let Some(LightOrigin { light, emission, point: origin, normal, position_pdf }) = self.light_origin(rng) else {
             return;
-        }
-        let (light, selection) = lights.select_by_power(rng.next_f32());
-        let (_, emission, area) = lights.light(light);
-        let Some((origin, normal)) = lights.emission_point(light, rng.next_vec2()) else { return };
-        let position_pdf = selection / area;
-        if !(position_pdf > 0.0 && normal != Vec3::ZERO) {
-            return;
-        }
+        };
         let mut start = SubpathVertex::new(VertexKind::Light, origin, normal, emission / position_pdf, position_pdf);
         start.light = Some(light);
         start.importance_region = self.emission_region(origin, normal);
@@ -150,29 +142,10 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
                 (Some(guide), Some(region)) if p_guide > 0.0 => Some(guide.distribution(region)),
                 _ => None,
             };
-            let (wi, factor, pdf) = match &distribution {
-                Some(d) => {
-                    let wi = if u_choice < p_guide {
-                        d.sample(u).direction
-                    } else {
-                        let Some(sample) = material.sample(shading, wo, u, u_lobe) else { break };
-                        sample.wi
-                    };
-                    let pdf = p_guide * d.pdf(wi) + (1.0 - p_guide) * material.pdf(shading, wo, wi);
-                    let f = match side {
-                        Side::Camera => material.eval(shading, wo, wi),
-                        Side::Light => material.eval(shading, wo, wi) * shading_correction(shading, wo, wi),
-                    };
-                    (wi, f / pdf, pdf)
-                }
-                None => {
-                    let Some(sample) = material.sample(shading, wo, u, u_lobe) else { break };
-                    let factor = match side {
-                        Side::Light => importance_weight(material, shading, wo, sample.wi, sample.weight),
-                        Side::Camera => sample.weight,
-                    };
-                    (sample.wi, factor, sample.pdf)
-                }
+            let scattering = Scattering { material, shading, wo, importance: side == Side::Light };
+            let Some((wi, factor, pdf)) = scattering.sample(distribution.as_ref(), p_guide, (u_choice, u, u_lobe))
+            else {
+                break;
             };
             if !(factor.is_finite() && factor.max_element() > 0.0 && pdf > 0.0) {
                 break;
