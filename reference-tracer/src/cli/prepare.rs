@@ -246,7 +246,8 @@ impl Prepared {
         let lights = self.light_guide.as_mut();
         let gate = self.gate.as_mut();
         let environment = self.environment_guide.as_mut();
-        let bidirectional_guided = guided && settings.integrator.method.bidirectional();
+        let bidirectional_guided =
+            guided && settings.integrator.method.bidirectional() && settings.integrator.guide_light_subpaths;
         if bidirectional_guided && self.importance_guide.is_none() {
             if let Some(guide_settings) = self.guide_settings {
                 self.importance_guide = Some(DirectionalGuide::build(&self.scene, guide_settings)?);

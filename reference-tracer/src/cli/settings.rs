@@ -220,6 +220,7 @@ impl TraceOptions {
             light_selection: plan.light_selection,
             environment_sampling: plan.environment_sampling,
             connection_roulette: self.connection_roulette,
+            guide_light_subpaths: self.guide_light_subpaths.unwrap_or(true),
         }
     }
 

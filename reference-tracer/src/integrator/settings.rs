@@ -58,6 +58,9 @@ pub struct IntegratorSettings {
     /// of it traces its shadow ray only with probability in proportion (and counts by
     /// the inverse: unbiased). 0 traces every connection.
     pub connection_roulette: f32,
+    /// bdpt-guided: whether the light subpaths are guided by W too (else the camera
+    /// subpaths alone, by Q).
+    pub guide_light_subpaths: bool,
 }
 
 /// [`IntegratorSettings::connection_roulette`] by default.
@@ -81,6 +84,7 @@ impl Default for IntegratorSettings {
             light_selection: LightSelection::Power,
             environment_sampling: EnvironmentSampling::Luminance,
             connection_roulette: DEFAULT_CONNECTION_ROULETTE,
+            guide_light_subpaths: true,
         }
     }
 }
