@@ -151,7 +151,7 @@ pub(super) fn run_compare(args: &CompareArgs) -> Result<(), String> {
             train_seconds: options.train_seconds,
             schedule: options.schedule(),
             combine: options.combine,
-            training_share: options.train_share,
+            training_share: options.train_share(method),
         };
         let (image, statistics, checkpoints) =
             pool.install(|| render_prepared(&mut prepared, &settings, Some(&reference), &report_times, true))?;

@@ -230,11 +230,14 @@ pub struct TraceOptions {
     pub(super) train_seconds: f64,
     /// The most of --seconds the iterative schedule trains for, in (0, 1] (it also stops
     /// where the next doubled iteration would leave the frozen image less than half).
-    /// 0.15 measured best: guided-nee at 60 s, seed 41, relMSE against 1 (the doubling
-    /// rule alone): glossy 128² 0.98×, door 160×120 0.97×, cornell 128² 0.97×, Veach Ajar
-    /// 0.95×, living room 0.82× (0.3: 0.99×, 0.99×, 0.97× on the first three).
-    #[arg(long, default_value_t = crate::schedule::DEFAULT_TRAINING_SHARE, value_parser = parse_share)]
-    pub(super) train_share: f64,
+    /// Default 0.15, and 0.5 for guided on the CPU. 0.15 measured best for guided-nee at
+    /// 60 s, seed 41, relMSE against 1 (the doubling rule alone): glossy 128² 0.98×, door
+    /// 160×120 0.97×, cornell 128² 0.97×, Veach Ajar 0.95×, living room 0.82× (0.3: 0.99×,
+    /// 0.99×, 0.97× on the first three). guided, whose frozen passes find the light by
+    /// scattering alone, gains from a longer training: 20 s, relMSE ÷ 0.15's, seeds 41 and
+    /// 42, 0.5: door 0.81 and 0.90, cornell 0.90 and 0.93 (0.3: 0.97, 0.97, 0.98, 0.89).
+    #[arg(long, value_parser = parse_share)]
+    pub(super) train_share: Option<f64>,
     /// Ray tracing library: auto (Embree where this lodestar was built with the `embree`
     /// feature, as scripts/render.sh builds it, else obvhs), obvhs (CWBVH), obvhs-bvh2, or
     /// embree. Embree measured 1.16–1.22× obvhs's nee paths/s (cornell 128², door 160×120,

@@ -120,7 +120,7 @@ pub(super) fn run_render(args: &RenderArgs) -> Result<(), String> {
         train_seconds: options.train_seconds,
         schedule: options.schedule(),
         combine: options.combine,
-        training_share: options.train_share,
+        training_share: options.train_share(args.integrator),
     };
     check_save_targets(args, &prepared)?;
     let (image, statistics, checkpoints) =

@@ -102,6 +102,17 @@ impl TraceOptions {
         }
     }
 
+    /// The most of a seconds budget the iterative schedule trains `method` for:
+    /// `--train-share`, else 0.5 for guided on the CPU and
+    /// [`DEFAULT_TRAINING_SHARE`](crate::schedule::DEFAULT_TRAINING_SHARE) otherwise.
+    pub(super) fn train_share(&self, method: Method) -> f64 {
+        match self.train_share {
+            Some(share) => share,
+            None if self.without_nee_defaults(method) => 0.5,
+            None => crate::schedule::DEFAULT_TRAINING_SHARE,
+        }
+    }
+
     /// Whether `method` takes the CPU's defaults for guiding without next-event
     /// estimation in the image: next-event estimation in the training passes only
     /// (`--nee-kickstart`), the guide at every vertex, the focal guide at most 0.25, and
@@ -327,15 +338,28 @@ mod tests {
         assert!(!guided_nee.nee_kickstart);
         assert_eq!((guided_nee.guide_depth, guided_nee.focal_probability), (1, 0.5));
         assert_eq!(grid_integral(&cpu, Method::GuidedNee), IntegralEstimator::BsdfSampled);
+        assert_eq!((cpu.train_share(Method::Guided), cpu.train_share(Method::GuidedNee)), (0.5, 0.15));
         let gpu = options(&["--device", "gpu"]);
+        assert_eq!(gpu.train_share(Method::Guided), 0.15);
         assert!(!gpu.integrator(Method::Guided, &plan()).nee_kickstart);
         assert_eq!(grid_integral(&gpu, Method::Guided), IntegralEstimator::BsdfSampled);
     }
 
     #[test]
     fn options_asked_for_win_over_the_guided_defaults() {
-        let asked =
-            options(&["--nee-kickstart", "off", "--guide-depth", "2", "--p-focal", "0.4", "--integral", "sampled"]);
+        let asked = options(&[
+            "--nee-kickstart",
+            "off",
+            "--guide-depth",
+            "2",
+            "--p-focal",
+            "0.4",
+            "--integral",
+            "sampled",
+            "--train-share",
+            "0.2",
+        ]);
+        assert_eq!(asked.train_share(Method::Guided), 0.2);
         let guided = asked.integrator(Method::Guided, &plan());
         assert!(!guided.nee_kickstart);
         assert_eq!((guided.guide_depth, guided.focal_probability), (2, 0.4));
