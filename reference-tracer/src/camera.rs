@@ -118,7 +118,14 @@ impl Camera {
             return None;
         }
         let to_eye = offset / distance;
-        let view = -to_eye;
+        let (cos_eye, image_point) = self.project(-to_eye)?;
+        let importance = self.direction_pdf_at(cos_eye) / (distance * distance);
+        Some(EyeConnection { pixel: (image_point.x as u32, image_point.y as u32), to_eye, distance, importance })
+    }
+
+    /// Where the unit direction `view` from the eye meets the image: cos θ from the view
+    /// axis and the image point in pixels ([`ray`](Self::ray) inverted), if it does.
+    fn project(&self, view: Vec3) -> Option<(f32, Vec2)> {
         let cos_eye = view.dot(self.forward);
         if cos_eye <= 0.0 {
             return None;
@@ -128,28 +135,15 @@ impl Camera {
         let (ndc_x, ndc_y) = (view.dot(self.right) / cos_eye, view.dot(self.up) / cos_eye);
         let x = (ndc_x / (aspect * tan_half_fov_y) + 1.0) * 0.5 * self.width as f32;
         let y = (1.0 - ndc_y / tan_half_fov_y) * 0.5 * self.height as f32;
-        if !(x >= 0.0 && y >= 0.0 && x < self.width as f32 && y < self.height as f32) {
-            return None;
-        }
-        let importance = self.direction_pdf_at(cos_eye) / (distance * distance);
-        Some(EyeConnection { pixel: (x as u32, y as u32), to_eye, distance, importance })
+        let inside = x >= 0.0 && y >= 0.0 && x < self.width as f32 && y < self.height as f32;
+        inside.then_some((cos_eye, Vec2::new(x, y)))
     }
 
     /// Density per steradian with which [`ray`](Self::ray) at a uniform image point draws
     /// `direction` (unit, from the eye): 1/(A·cos³θ), A the image plane's area at
     /// distance 1; 0 outside the image.
     pub fn direction_pdf(&self, direction: Vec3) -> f32 {
-        let cos_eye = direction.dot(self.forward);
-        if cos_eye <= 0.0 {
-            return 0.0;
-        }
-        let tan_half_fov_y = self.tan_half_fov_y();
-        let aspect = self.width as f32 / self.height as f32;
-        let (ndc_x, ndc_y) = (direction.dot(self.right) / cos_eye, direction.dot(self.up) / cos_eye);
-        if ndc_x.abs() > aspect * tan_half_fov_y || ndc_y.abs() > tan_half_fov_y {
-            return 0.0;
-        }
-        self.direction_pdf_at(cos_eye)
+        self.project(direction).map_or(0.0, |(cos_eye, _)| self.direction_pdf_at(cos_eye))
     }
 
     /// 1/(A·cos³θ) for a direction at cos θ = `cos_eye` from the view axis.

@@ -193,7 +193,7 @@ pub fn render<I: Intersector, G: Guide>(
         .with_guide_shares(guide_shares.as_deref())
         .with_gate(gate.as_deref())
         .with_importance_guide(importance.as_deref())
-        .with_connection_threshold(settings.integrator.connection_roulette * mean_luminance(&statistics.pass_means));
+        .with_connection_threshold(connection_threshold(settings.integrator.connection_roulette, &statistics));
         let pass_seed = pass_seed(settings.seed, pass);
         let (counters, pass_sum) = if settings.integrator.method.splats() {
             splat_pass(&tracer, &mut film, &mut splat_groups, pass_seed)
@@ -277,13 +277,15 @@ pub fn render<I: Intersector, G: Guide>(
     (film.image(), statistics)
 }
 
-/// The mean luminance of the passes' images so far (0 before the first).
-fn mean_luminance(pass_means: &[[f64; 3]]) -> f32 {
-    if pass_means.is_empty() {
+/// bdpt's connection roulette threshold: `roulette` times the mean luminance of the
+/// passes' images so far (0, every connection traced, when off or before the first).
+fn connection_threshold(roulette: f32, statistics: &RenderStatistics) -> f32 {
+    let pass_means = &statistics.pass_means;
+    if roulette <= 0.0 || pass_means.is_empty() {
         return 0.0;
     }
     let sum = pass_means.iter().fold(Vec3::ZERO, |sum, m| sum + Vec3::new(m[0] as f32, m[1] as f32, m[2] as f32));
-    crate::color::luminance(sum / pass_means.len() as f32)
+    roulette * crate::color::luminance(sum / pass_means.len() as f32)
 }
 
 /// One camera path per pixel, added to `film`; the pass's counters and radiance sum.

@@ -17,7 +17,7 @@ mod path;
 mod settings;
 mod tracer;
 
-pub use bidirectional::{BidirectionalScratch, SubpathVertex};
+pub use bidirectional::BidirectionalScratch;
 pub use counters::{PathCounters, TIMED_PATH_STRIDE};
 pub use method::{EnvironmentSampling, LightSelection, Method};
 pub use settings::{IntegratorSettings, DEFAULT_CONNECTION_ROULETTE};

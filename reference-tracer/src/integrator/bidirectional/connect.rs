@@ -58,7 +58,7 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
         if t == 1 {
             // A light vertex seen by the camera.
             let qs = &light[s - 1];
-            let (material, shading) = qs.surface.filter(|_| qs.connectible())?;
+            let (material, shading) = qs.surface.filter(|_| !qs.delta)?;
             let eye = self.scene.camera.connect(qs.point)?;
             let f = material.eval(&shading, qs.wo, eye.to_eye) * shading_correction(&shading, qs.wo, eye.to_eye);
             if f.max_element() <= 0.0 {
@@ -69,7 +69,7 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
             return Some(Connection { value, sampled: None, pixel: Some(eye.pixel), shadow });
         }
         let pt = &camera[t - 1];
-        let (camera_material, camera_shading) = pt.surface.filter(|_| pt.connectible())?;
+        let (camera_material, camera_shading) = pt.surface.filter(|_| !pt.delta)?;
         if s == 1 {
             // Next-event estimation: a fresh point on a light picked by power.
             let lights = &self.scene.lights;
@@ -98,7 +98,7 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
         }
         // Two surfaces joined by a shadow ray.
         let qs = &light[s - 1];
-        let (light_material, light_shading) = qs.surface.filter(|_| qs.connectible())?;
+        let (light_material, light_shading) = qs.surface.filter(|_| !qs.delta)?;
         let offset = qs.point - pt.point;
         let distance2 = offset.length_squared();
         if !distance2.is_finite() || distance2 <= 0.0 {

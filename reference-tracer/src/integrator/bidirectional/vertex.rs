@@ -36,7 +36,8 @@ pub struct SubpathVertex<R> {
     /// Density per unit area with which the other subpath's sampling would reach it
     /// from the next vertex of its own subpath.
     pub(super) pdf_rev: f32,
-    /// Whether the direction sampled here came from a delta lobe.
+    /// Whether every lobe of the surface here is a delta (mirrors, glass): its sampled
+    /// direction has no density and no connection ends here.
     pub(super) delta: bool,
     /// bdpt-guided: Q's region here (surfaces whose lobes are not all delta), which the
     /// camera side's sampling mixes in.
@@ -64,15 +65,6 @@ impl<R: Copy> SubpathVertex<R> {
             region: None,
             importance_region: None,
             scatter_pdf: 0.0,
-        }
-    }
-
-    /// Whether a connection may end here (a surface whose lobes are not all delta, or
-    /// the camera, or a light).
-    pub(super) fn connectible(&self) -> bool {
-        match self.kind {
-            VertexKind::Surface => self.surface.is_some_and(|(material, _)| !material.is_delta()),
-            VertexKind::Camera | VertexKind::Light => true,
         }
     }
 

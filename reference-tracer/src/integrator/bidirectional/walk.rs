@@ -101,12 +101,13 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
                 SubpathVertex::new(VertexKind::Surface, surface.point, surface.geometric_normal, beta, 0.0);
             vertex.wo = surface.wo;
             vertex.surface = Some((surface.material, surface.shading));
+            vertex.delta = surface.material.is_delta();
             if surface.material.is_emissive() {
                 vertex.light = self.scene.lights.light_at(hit.primitive, hit.barycentrics);
             }
             // Both sides locate in both guides: a vertex's density for the other side's
             // sampling needs that side's region.
-            if !surface.material.is_delta() {
+            if !vertex.delta {
                 let normal = surface.shading.frame.normal;
                 vertex.region = self.guide.and_then(|guide| guide.locate(surface.point, normal));
                 vertex.importance_region = self.importance.and_then(|w| w.locate(surface.point, normal));
@@ -152,7 +153,6 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
             }
             beta *= factor;
             relative *= factor;
-            path[k].delta = material.is_delta();
             path[k].scatter_pdf = pdf;
             ray = Ray::new(self.spawn(surface.point, surface.geometric_normal, wi), wi);
         }
