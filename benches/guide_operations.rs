@@ -21,7 +21,8 @@ use guiding_core::{
 
 fn bench(c: &mut Criterion) {
     let walls = support::box_walls();
-    let settings = HemisphereGridSettings { probe_count: Some(1000), ..Default::default() };
+    // 1,000 probes of 8×16 patches with their candidate table pass the default 2 MiB.
+    let settings = HemisphereGridSettings { probe_count: Some(1000), budget_bytes: 4 << 20, ..Default::default() };
     let mut grid = HemisphereGrid::build(&walls, settings).expect("grid");
     // Query points: another low-discrepancy set on the same walls, offset so they are
     // not the probes themselves.
