@@ -58,6 +58,19 @@ impl Camera {
         Some(Self { eye, forward, right, up, tan_half_fov, fov_axis: fov.1, width, height })
     }
 
+    /// The same camera (field of view, size, up, handedness) at `eye`, looking at
+    /// `target`; `None` when the view direction is zero or parallel to its up.
+    pub fn looking(&self, eye: Vec3, target: Vec3) -> Option<Self> {
+        let mirrored = self.right.dot(self.forward.cross(self.up)) < 0.0;
+        let forward = (target - eye).try_normalize()?;
+        let mut right = forward.cross(self.up).try_normalize()?;
+        let up = right.cross(forward);
+        if mirrored {
+            right = -right;
+        }
+        Some(Self { eye, forward, right, up, ..*self })
+    }
+
     /// The same view at another resolution: the field of view along its axis is kept (so
     /// an image of the same aspect shows the same picture).
     pub fn with_resolution(&self, width: u32, height: u32) -> Self {

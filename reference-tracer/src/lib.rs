@@ -9,6 +9,7 @@
 //!
 //! The data path runs one way: scene → intersector → integrator → guide → image.
 
+pub mod animation;
 pub mod camera;
 pub mod cli;
 pub mod color;

@@ -13,7 +13,7 @@ use rayon::prelude::*;
 
 use crate::film::{Combine, Film};
 use crate::integrator::{
-    BidirectionalScratch, EnvironmentSampling, IntegratorSettings, LightSelection, PathCounters, PathScratch,
+    BidirectionalScratch, EnvironmentSampling, IntegratorSettings, LightSelection, Method, PathCounters, PathScratch,
     PathTracer,
 };
 use crate::output::Image;
@@ -197,6 +197,8 @@ pub fn render<I: Intersector, G: Guide>(
         let pass_seed = pass_seed(settings.seed, pass);
         let (counters, pass_sum) = if settings.integrator.method.splats() {
             splat_pass(&tracer, &mut film, &mut splat_groups, pass_seed)
+        } else if settings.integrator.method == Method::Vpl {
+            vpl_pass(&tracer, scene, &mut film, pass_seed)
         } else {
             camera_pass(&tracer, &mut film, pass_seed)
         };
@@ -294,20 +296,60 @@ fn camera_pass<I: Intersector, G: Guide>(
     film: &mut Film,
     pass_seed: u64,
 ) -> (PathCounters, [f64; 3]) {
+    pixel_pass(film, pass_seed, PathScratch::default, |scratch, (x, y), rng, counters| {
+        let ray = tracer.camera_ray(x, y, rng);
+        tracer.radiance(ray, rng, scratch, counters)
+    })
+}
+
+/// Instant radiosity: the pass's virtual point lights from `vpl_paths` light subpaths
+/// (their random numbers from the pass seed alone, so the same seed gives the same
+/// lights in every frame of an animation), then one gathering camera ray per pixel.
+fn vpl_pass<I: Intersector, G: Guide>(
+    tracer: &PathTracer<'_, I, G>,
+    scene: &Scene,
+    film: &mut Film,
+    pass_seed: u64,
+) -> (PathCounters, [f64; 3]) {
+    let settings = tracer.settings();
+    let mut light_rng = pixel_rng(pass_seed, u64::MAX);
+    let mut light_counters = PathCounters::default();
+    let vpls = tracer.virtual_point_lights(settings.vpl_paths, &mut light_rng, &mut light_counters);
+    let (low, high) = scene.bounds();
+    let min_distance = settings.vpl_min_distance * (high - low).length();
+    let (counters, pass_sum) = pixel_pass(
+        film,
+        pass_seed,
+        || (),
+        |_, (x, y), rng, counters| {
+            let ray = tracer.camera_ray(x, y, rng);
+            tracer.gather(ray, &vpls, min_distance, rng, counters)
+        },
+    );
+    (counters + light_counters, pass_sum)
+}
+
+/// One sample per pixel from `sample` (given per-thread scratch made by `scratch`, the
+/// pixel, its generator and counters), added to `film`; the pass's counters and
+/// radiance sum. Rows come back in order, so the pass sum is added up in the same order
+/// on every run: renders that do not learn are reproducible to the last bit.
+fn pixel_pass<S>(
+    film: &mut Film,
+    pass_seed: u64,
+    scratch: impl Fn() -> S + Sync + Send,
+    sample: impl Fn(&mut S, (u32, u32), &mut Pcg32, &mut PathCounters) -> Vec3 + Sync + Send,
+) -> (PathCounters, [f64; 3]) {
     let width = film.width();
-    // Rows come back in order, so the pass sum is added up in the same order on every
-    // run: renders that do not learn are reproducible to the last bit.
     let rows: Vec<(PathCounters, [f64; 3])> = film
         .pixels_mut()
         .par_chunks_mut(width)
         .enumerate()
-        .map_init(PathScratch::default, |scratch, (y, row)| {
+        .map_init(scratch, |scratch, (y, row)| {
             let mut counters = PathCounters::default();
             let mut row_sum = [0.0f64; 3];
             for (x, pixel) in row.iter_mut().enumerate() {
                 let mut rng = pixel_rng(pass_seed, (y * width + x) as u64);
-                let ray = tracer.camera_ray(x as u32, y as u32, &mut rng);
-                let radiance = tracer.radiance(ray, &mut rng, scratch, &mut counters);
+                let radiance = sample(scratch, (x as u32, y as u32), &mut rng, &mut counters);
                 // A NaN or infinite sample would poison the pixel for good: count the
                 // path as lost instead (it never happens with valid scenes).
                 let radiance = if radiance.is_finite() { radiance } else { Vec3::ZERO };

@@ -199,3 +199,20 @@ fn the_command_exits_non_zero_with_the_message() {
     assert!(stderr.contains("shapes[1].material") && stderr.contains("gold"), "{stderr}");
     assert!(!stderr.contains("panicked"), "{stderr}");
 }
+
+#[test]
+fn bad_camera_keyframes_name_the_keyframe() {
+    let text =
+        error_of("one-keyframe", |j| j["camera"]["keyframes"] = json!([{ "eye": [0, 1, 3], "target": [0, 1, 0] }]));
+    assert_mentions(&text, &["camera.keyframes[0]", "at least two"]);
+    let text = error_of("keyframe-along-up", |j| {
+        j["camera"]["keyframes"] =
+            json!([{ "eye": [0, 1, 3], "target": [0, 1, 0] }, { "eye": [0, 1, 0], "target": [0, 3, 0] }])
+    });
+    assert_mentions(&text, &["camera.keyframes[1].target", "parallel"]);
+    let text = error_of("keyframe-key", |j| {
+        j["camera"]["keyframes"] =
+            json!([{ "eye": [0, 1, 3], "target": [0, 1, 0] }, { "eye": [0, 1, 3], "taret": [0, 1, 0] }])
+    });
+    assert_mentions(&text, &["keyframes", "taret"]);
+}

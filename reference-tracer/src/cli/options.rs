@@ -224,6 +224,15 @@ pub struct TraceOptions {
     /// 28.5), tree 4.78 (off 6.06); plain bdpt 5.05.
     #[arg(long, value_parser = parse_switch)]
     pub(super) guide_light_subpaths: Option<bool>,
+    /// vpl: light subpaths traced per pass; their vertices are the pass's virtual point
+    /// lights, each gathered through a shadow ray at every pixel.
+    #[arg(long, default_value_t = crate::integrator::DEFAULT_VPL_PATHS, value_parser = clap::value_parser!(u32).range(1..))]
+    pub(super) vpl_paths: u32,
+    /// vpl: the least distance at which a virtual light's 1/d² is taken, as a share of the
+    /// scene's extent: larger removes more of the splotches beside each virtual light and
+    /// darkens more of the light exchanged at shorter range (corners); 0 clamps nothing.
+    #[arg(long, default_value_t = crate::integrator::DEFAULT_VPL_MIN_DISTANCE, value_parser = parse_non_negative)]
+    pub(super) vpl_min_distance: f32,
     /// Guided methods: seconds of training passes whose samples are discarded (their
     /// time counts towards --seconds).
     #[arg(long, default_value_t = 0.0)]

@@ -196,7 +196,7 @@ impl Prepared {
         mut on_pass: impl FnMut(&Progress<'_>),
     ) -> Result<(Image, RenderStatistics), String> {
         let method = settings.integrator.method;
-        if method.splats() {
+        if method.splats() || method == Method::Vpl {
             let name = method.name();
             if self.device == Device::Gpu {
                 return Err(format!("{name}: the GPU tracer has no light subpaths (use --device cpu)"));

@@ -9,6 +9,7 @@ use super::options::{parse_method, TraceOptions};
 use super::outputs::{sibling, statistics_json, write_outputs};
 use super::prepare::{prepare_with_lights, Prepared};
 use super::progressive::{describe_shares, render_prepared, thread_pool};
+use crate::animation::frame_seed;
 use crate::directional_guide::DirectionalGuide;
 use crate::integrator::Method;
 use crate::output::read_image;
@@ -21,8 +22,11 @@ pub(super) struct RenderArgs {
     /// pt, nee, guided, guided-nee, light (light tracing: paths from the area lights,
     /// each vertex connected to the camera; scenes without mirrors, glass or an
     /// environment), light-guided (light tracing guided by W, the importance learned
-    /// from light paths) or bdpt (bidirectional: a camera and a light subpath joined in
-    /// every way, weighted by exact MIS; scenes without an environment). Default
+    /// from light paths), bdpt (bidirectional: a camera and a light subpath joined in
+    /// every way, weighted by exact MIS; scenes without an environment), bdpt-guided
+    /// (both subpaths guided, by Q and W) or vpl (instant radiosity: virtual point lights
+    /// from a few light subpaths per pass, gathered at the first surface; biased by its
+    /// clamp, coherent across the frames of an animation). Default
     /// guided-nee: at 60 s, with the guided
     /// defaults, its relMSE ÷ nee's was 0.423 and 0.428 on door 160×120 (seeds 41, 42),
     /// 0.743 and 0.917 on cornell 128²; six scenes in the README.
@@ -67,43 +71,31 @@ pub(super) struct RenderArgs {
     /// Save the environment-tile guide by the end of the render.
     #[arg(long)]
     pub(super) save_env_guide: Option<PathBuf>,
+    /// Render an animation of this many frames along the camera's keyframes in the scene
+    /// file (`camera.keyframes`), each with the whole --spp or --seconds, written as
+    /// IMAGE-0000.exr, IMAGE-0001.exr, … (with their .png and .json); the --save-* flags
+    /// save what the last frame ended with.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+    pub(super) frames: u32,
+    /// Animations: on keeps every learner (Q, W, light selection, the focal guide) from
+    /// frame to frame and draws the same random numbers in every frame (instant
+    /// radiosity's virtual lights stay where they were); off renders each frame as a
+    /// separate render would, from empty learners with a seed of its own.
+    #[arg(long, default_value = "on", action = clap::ArgAction::Set, value_parser = super::options::parse_switch)]
+    pub(super) frame_coherence: bool,
 }
 
 pub(super) fn run_render(args: &RenderArgs) -> Result<(), String> {
+    if args.frames > 1 {
+        return run_animation(args);
+    }
     let options = &args.options;
-    let guide = options.directional_guide(args.integrator, options.single_guide()?)?;
-    let budget = match (args.spp, args.seconds) {
-        (Some(0), _) => return Err("--spp must be at least 1".into()),
-        (Some(spp), _) => Budget::SamplesPerPixel(spp),
-        (None, Some(s)) if s.is_finite() && s > 0.0 => Budget::Seconds(s),
-        (None, Some(s)) => return Err(format!("--seconds {s} must be positive")),
-        (None, None) => Budget::SamplesPerPixel(64),
-    };
     let reference = match &args.reference {
         Some(path) => Some(read_image(path).map_err(|e| format!("{}: {e}", path.display()))?),
         None => None,
     };
     let pool = thread_pool(options.threads)?;
-    let mut prepared =
-        prepare_with_lights(&args.scene, options.intersector, guide, options.light_request(args.integrator)?)?;
-    prepared.resize(options.resolution);
-    if let Some(path) = &args.load_guide {
-        let Some(built) = &prepared.guide else {
-            return Err(format!("--load-guide {}: this render has no directional guide", path.display()));
-        };
-        let bytes = std::fs::read(path).map_err(|e| format!("--load-guide {}: {e}", path.display()))?;
-        let loaded = DirectionalGuide::from_bytes(built.structure(), &bytes)
-            .map_err(|e| format!("--load-guide {}: {e}", path.display()))?;
-        prepared.guide = Some(loaded);
-    }
-    load_sampling_guides(args, &mut prepared)?;
-    prepared.device = options.device;
-    prepared.focal_settings = options.focal_settings(args.integrator)?;
-    prepared.guide_share_cost = options.guide_share_cost;
-    for warning in &prepared.scene.warnings {
-        eprintln!("warning: {}: {warning}", args.scene.display());
-    }
-    eprintln!("plan: {}", prepared.plan.describe());
+    let (mut prepared, settings) = prepare_render(args)?;
     if let Some(reference) = &reference {
         let camera = &prepared.scene.camera;
         if (reference.width, reference.height) != (camera.width as usize, camera.height as usize) {
@@ -113,15 +105,6 @@ pub(super) fn run_render(args: &RenderArgs) -> Result<(), String> {
             ));
         }
     }
-    let settings = RenderSettings {
-        integrator: options.integrator(args.integrator, &prepared.plan),
-        budget,
-        seed: options.seed,
-        train_seconds: options.train_seconds,
-        schedule: options.schedule(),
-        combine: options.combine,
-        training_share: options.train_share(args.integrator),
-    };
     check_save_targets(args, &prepared)?;
     let (image, statistics, checkpoints) =
         pool.install(|| render_prepared(&mut prepared, &settings, reference.as_ref(), &[], true))?;
@@ -162,6 +145,103 @@ pub(super) fn run_render(args: &RenderArgs) -> Result<(), String> {
     if let Some(shares) = describe_shares(&prepared, args.integrator) {
         eprintln!("shares: {shares}");
     }
+    save_guides(args, &prepared)?;
+    eprintln!("wrote {}", args.out.display());
+    Ok(())
+}
+
+/// `--frames N`: the frames one after another, coherent or not (`--frame-coherence`).
+fn run_animation(args: &RenderArgs) -> Result<(), String> {
+    if let Some(path) = &args.reference {
+        return Err(format!("--reference {}: an animation (--frames above 1) has no one reference", path.display()));
+    }
+    let pool = thread_pool(args.options.threads)?;
+    let (mut prepared, settings) = prepare_render(args)?;
+    if prepared.scene.camera_keyframes.is_empty() {
+        eprintln!("warning: {}: the camera has no keyframes: every frame shows the same view", args.scene.display());
+    }
+    check_save_targets(args, &prepared)?;
+    let coherent = args.frame_coherence;
+    for frame in 0..args.frames {
+        if frame > 0 && !coherent {
+            // Empty learners, as a separate render would start from.
+            prepared = prepare_render(args)?.0;
+        }
+        prepared.scene.camera = prepared.scene.frame_camera(frame, args.frames);
+        let frame_settings = RenderSettings { seed: frame_seed(settings.seed, frame, coherent), ..settings };
+        let (image, statistics, _) =
+            pool.install(|| render_prepared(&mut prepared, &frame_settings, None, &[], true))?;
+        let out = frame_path(&args.out, frame);
+        write_outputs(&out, &image, args.pfm)?;
+        let json = statistics_json(args.integrator, &prepared, &statistics, &image, pool.current_num_threads());
+        let json_path = sibling(&out, "json");
+        std::fs::write(&json_path, serde_json::to_string_pretty(&json).unwrap_or_default())
+            .map_err(|e| format!("cannot write {}: {e}", json_path.display()))?;
+        eprintln!(
+            "frame {frame}: {} spp in {:.2} s; wrote {}",
+            statistics.passes,
+            statistics.render_seconds,
+            out.display()
+        );
+    }
+    save_guides(args, &prepared)
+}
+
+/// IMAGE-NNNN.ext for frame NNNN of `out` (IMAGE.ext).
+fn frame_path(out: &Path, frame: u32) -> PathBuf {
+    let stem = out.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let name = match out.extension() {
+        Some(extension) => format!("{stem}-{frame:04}.{}", extension.to_string_lossy()),
+        None => format!("{stem}-{frame:04}"),
+    };
+    out.with_file_name(name)
+}
+
+/// The scene with its intersector, plan and learners, and the render's settings.
+fn prepare_render(args: &RenderArgs) -> Result<(Prepared, RenderSettings), String> {
+    let options = &args.options;
+    let guide = options.directional_guide(args.integrator, options.single_guide()?)?;
+    let budget = match (args.spp, args.seconds) {
+        (Some(0), _) => return Err("--spp must be at least 1".into()),
+        (Some(spp), _) => Budget::SamplesPerPixel(spp),
+        (None, Some(s)) if s.is_finite() && s > 0.0 => Budget::Seconds(s),
+        (None, Some(s)) => return Err(format!("--seconds {s} must be positive")),
+        (None, None) => Budget::SamplesPerPixel(64),
+    };
+    let mut prepared =
+        prepare_with_lights(&args.scene, options.intersector, guide, options.light_request(args.integrator)?)?;
+    prepared.resize(options.resolution);
+    if let Some(path) = &args.load_guide {
+        let Some(built) = &prepared.guide else {
+            return Err(format!("--load-guide {}: this render has no directional guide", path.display()));
+        };
+        let bytes = std::fs::read(path).map_err(|e| format!("--load-guide {}: {e}", path.display()))?;
+        let loaded = DirectionalGuide::from_bytes(built.structure(), &bytes)
+            .map_err(|e| format!("--load-guide {}: {e}", path.display()))?;
+        prepared.guide = Some(loaded);
+    }
+    load_sampling_guides(args, &mut prepared)?;
+    prepared.device = options.device;
+    prepared.focal_settings = options.focal_settings(args.integrator)?;
+    prepared.guide_share_cost = options.guide_share_cost;
+    for warning in &prepared.scene.warnings {
+        eprintln!("warning: {}: {warning}", args.scene.display());
+    }
+    eprintln!("plan: {}", prepared.plan.describe());
+    let settings = RenderSettings {
+        integrator: options.integrator(args.integrator, &prepared.plan),
+        budget,
+        seed: options.seed,
+        train_seconds: options.train_seconds,
+        schedule: options.schedule(),
+        combine: options.combine,
+        training_share: options.train_share(args.integrator),
+    };
+    Ok((prepared, settings))
+}
+
+/// `--save-guide`, `--save-light-guide` and `--save-env-guide`.
+fn save_guides(args: &RenderArgs, prepared: &Prepared) -> Result<(), String> {
     if let Some(path) = &args.save_guide {
         let Some(guide) = &prepared.guide else {
             return Err(format!("--save-guide {}: {NO_GUIDE}", path.display()));
@@ -169,9 +249,7 @@ pub(super) fn run_render(args: &RenderArgs) -> Result<(), String> {
         std::fs::write(path, guide.to_bytes()).map_err(|e| format!("--save-guide {}: {e}", path.display()))?;
         eprintln!("saved the guide to {}", path.display());
     }
-    save_sampling_guides(args, &prepared)?;
-    eprintln!("wrote {}", args.out.display());
-    Ok(())
+    save_sampling_guides(args, prepared)
 }
 
 /// Why a render has no directional guide to save.

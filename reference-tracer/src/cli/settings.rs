@@ -232,6 +232,8 @@ impl TraceOptions {
             environment_sampling: plan.environment_sampling,
             connection_roulette: self.connection_roulette,
             guide_light_subpaths: self.guide_light_subpaths.unwrap_or(true),
+            vpl_paths: self.vpl_paths,
+            vpl_min_distance: self.vpl_min_distance,
         }
     }
 

@@ -143,6 +143,7 @@ pub(crate) fn camera_from_matrix(
         width,
         height,
         mirrored,
+        keyframes: Vec::new(),
     })
 }
 

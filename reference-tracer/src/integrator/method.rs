@@ -22,11 +22,15 @@ pub enum Method {
     /// Bidirectional path tracing whose camera subpaths are guided by Q (learned from
     /// them), the guided densities in every strategy's weight.
     BdptGuided,
+    /// Instant radiosity: the vertices of a few light subpaths per pass are virtual point
+    /// lights, gathered at each camera ray's first surface that is not all delta, their
+    /// geometry term clamped (biased; coherent from frame to frame).
+    Vpl,
 }
 
 impl Method {
     /// Every method, in the order the command line lists them.
-    pub const ALL: [Method; 8] = [
+    pub const ALL: [Method; 9] = [
         Method::Pt,
         Method::Nee,
         Method::Guided,
@@ -35,6 +39,7 @@ impl Method {
         Method::LightGuided,
         Method::Bdpt,
         Method::BdptGuided,
+        Method::Vpl,
     ];
 
     /// The command-line name.
@@ -48,6 +53,7 @@ impl Method {
             Method::LightGuided => "light-guided",
             Method::Bdpt => "bdpt",
             Method::BdptGuided => "bdpt-guided",
+            Method::Vpl => "vpl",
         }
     }
 

@@ -61,7 +61,17 @@ pub struct IntegratorSettings {
     /// bdpt-guided: whether the light subpaths are guided by W too (else the camera
     /// subpaths alone, by Q).
     pub guide_light_subpaths: bool,
+    /// vpl: light subpaths traced per pass for the virtual point lights.
+    pub vpl_paths: u32,
+    /// vpl: the least distance at which a virtual light's 1/d² is taken, as a share of
+    /// the scene's extent (the clamp, and the bias it brings).
+    pub vpl_min_distance: f32,
 }
+
+/// [`IntegratorSettings::vpl_paths`] by default.
+pub const DEFAULT_VPL_PATHS: u32 = 64;
+/// [`IntegratorSettings::vpl_min_distance`] by default.
+pub const DEFAULT_VPL_MIN_DISTANCE: f32 = 0.02;
 
 /// [`IntegratorSettings::connection_roulette`] by default.
 pub const DEFAULT_CONNECTION_ROULETTE: f32 = 0.0;
@@ -85,6 +95,8 @@ impl Default for IntegratorSettings {
             environment_sampling: EnvironmentSampling::Luminance,
             connection_roulette: DEFAULT_CONNECTION_ROULETTE,
             guide_light_subpaths: true,
+            vpl_paths: DEFAULT_VPL_PATHS,
+            vpl_min_distance: DEFAULT_VPL_MIN_DISTANCE,
         }
     }
 }

@@ -51,6 +51,22 @@ pub struct CameraDescription {
     /// camera): the picture is mirrored left to right.
     #[serde(default, skip_serializing_if = "is_false")]
     pub mirrored: bool,
+    /// An animation's views (`lodestar render --frames N`): at least two, spread evenly
+    /// over the frames (the first at frame 0, the last at frame N − 1) and joined by
+    /// straight lines; `up`, the field of view and the size stay those above. Absent or
+    /// empty: every frame shows `eye` → `target`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub keyframes: Vec<CameraKeyframe>,
+}
+
+/// One view of a camera animation.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraKeyframe {
+    /// Eye position.
+    pub eye: [f32; 3],
+    /// Point looked at.
+    pub target: [f32; 3],
 }
 
 fn is_false(value: &bool) -> bool {

@@ -40,6 +40,8 @@ pub struct Scene {
     pub path: PathBuf,
     /// The camera.
     pub camera: Camera,
+    /// An animation's camera views (eye, target), or none ([`frame_camera`](Self::frame_camera)).
+    pub camera_keyframes: Vec<(Vec3, Vec3)>,
     /// Every triangle, in shape order.
     pub triangles: Vec<Triangle>,
     /// Unit geometric normal of each triangle (from its winding).
@@ -92,6 +94,8 @@ impl Scene {
         }
         let camera =
             build_camera(&description.camera).map_err(|(field, message)| error(format!("camera.{field}"), message))?;
+        let camera_keyframes = build_keyframes(&camera, &description.camera)
+            .map_err(|(index, field, message)| error(format!("camera.keyframes[{index}].{field}"), message))?;
 
         let mut textures = Vec::new();
         let mut texture_index = HashMap::new();
@@ -169,6 +173,7 @@ impl Scene {
         Ok(Scene {
             path: path.to_path_buf(),
             camera,
+            camera_keyframes,
             triangles,
             normals,
             triangle_materials,
@@ -225,6 +230,15 @@ impl Scene {
         self.materials.iter().any(|m| m.opacity_texture.is_some())
     }
 
+    /// The camera of frame `frame` of `frames` (0-based): the keyframes' view there, with
+    /// the current camera's size and field of view; the current camera itself when the
+    /// scene has no animation.
+    pub fn frame_camera(&self, frame: u32, frames: u32) -> Camera {
+        crate::animation::keyframe_view(&self.camera_keyframes, frame, frames)
+            .and_then(|(eye, target)| self.camera.looking(eye, target))
+            .unwrap_or(self.camera)
+    }
+
     /// The bounding box of every triangle, (low, high); inverted (∞, −∞) for no triangles.
     pub fn bounds(&self) -> (Vec3, Vec3) {
         self.triangles
@@ -237,6 +251,31 @@ impl Scene {
 fn finite3(values: [f32; 3]) -> Option<Vec3> {
     let v = Vec3::from(values);
     v.is_finite().then_some(v)
+}
+
+/// What is wrong with a keyframe: its index, the field, the message.
+type KeyframeError = (usize, &'static str, String);
+
+/// The keyframes as points, each checked to make a camera; errors name the keyframe.
+fn build_keyframes(camera: &Camera, description: &CameraDescription) -> Result<Vec<(Vec3, Vec3)>, KeyframeError> {
+    let keyframes = &description.keyframes;
+    if keyframes.len() == 1 {
+        return Err((0, "eye", "an animation needs at least two keyframes (or none)".to_string()));
+    }
+    keyframes
+        .iter()
+        .enumerate()
+        .map(|(index, keyframe)| {
+            let eye = finite3(keyframe.eye).ok_or((index, "eye", "must be finite".to_string()))?;
+            let target = finite3(keyframe.target).ok_or((index, "target", "must be finite".to_string()))?;
+            camera.looking(eye, target).ok_or((
+                index,
+                "target",
+                "the view direction is zero or parallel to `up`".to_string(),
+            ))?;
+            Ok((eye, target))
+        })
+        .collect()
 }
 
 fn build_camera(camera: &CameraDescription) -> Result<Camera, (&'static str, String)> {

@@ -88,6 +88,7 @@ pub fn read(file: &Path, text: &str) -> Result<Imported, SceneError> {
             width: 1,
             height: 1,
             mirrored: false,
+            keyframes: Vec::new(),
         },
         textures: Default::default(),
         materials: Default::default(),

@@ -15,6 +15,7 @@ mod connect;
 mod learn;
 mod mis;
 mod vertex;
+mod vpl;
 mod walk;
 
 use glam::Vec3;
@@ -25,6 +26,7 @@ use super::tracer::PathTracer;
 use crate::color::luminance;
 use connect::Shadow;
 pub use vertex::SubpathVertex;
+pub use vpl::VirtualPointLights;
 
 /// Per-thread space for the two subpaths (reused from sample to sample) and what the
 /// camera subpath teaches the guide.
