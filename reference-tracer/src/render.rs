@@ -13,7 +13,7 @@ use rayon::prelude::*;
 
 use crate::film::{Combine, Film};
 use crate::integrator::{
-    BidirectionalScratch, EnvironmentSampling, IntegratorSettings, LightSelection, Method, PathCounters, PathScratch,
+    BidirectionalScratch, EnvironmentSampling, IntegratorSettings, LightSelection, PathCounters, PathScratch,
     PathTracer,
 };
 use crate::output::Image;
@@ -197,7 +197,7 @@ pub fn render<I: Intersector, G: Guide>(
         let pass_seed = pass_seed(settings.seed, pass);
         let (counters, pass_sum) = if settings.integrator.method.splats() {
             splat_pass(&tracer, &mut film, &mut splat_groups, pass_seed)
-        } else if settings.integrator.method == Method::Vpl {
+        } else if settings.integrator.method.gathers_virtual_lights() {
             vpl_pass(&tracer, scene, &mut film, pass_seed)
         } else {
             camera_pass(&tracer, &mut film, pass_seed)
@@ -304,7 +304,8 @@ fn camera_pass<I: Intersector, G: Guide>(
 
 /// Instant radiosity: the pass's virtual point lights from `vpl_paths` light subpaths
 /// (their random numbers from the pass seed alone, so the same seed gives the same
-/// lights in every frame of an animation), then one gathering camera ray per pixel.
+/// lights in every frame of an animation), then one gathering camera ray per pixel; in
+/// vpl-guided's learning passes W then learns what each light gave the image.
 fn vpl_pass<I: Intersector, G: Guide>(
     tracer: &PathTracer<'_, I, G>,
     scene: &Scene,
@@ -317,16 +318,35 @@ fn vpl_pass<I: Intersector, G: Guide>(
     let vpls = tracer.virtual_point_lights(settings.vpl_paths, &mut light_rng, &mut light_counters);
     let (low, high) = scene.bounds();
     let min_distance = settings.vpl_min_distance * (high - low).length();
-    let (counters, pass_sum) = pixel_pass(
-        film,
-        pass_seed,
-        || (),
-        |_, (x, y), rng, counters| {
-            let ray = tracer.camera_ray(x, y, rng);
-            tracer.gather(ray, &vpls, min_distance, rng, counters)
-        },
-    );
+    let learning = settings.learn && settings.method.uses_guide();
+    let total = std::sync::Mutex::new(vpls.tally());
+    let tally = || Tally { local: learning.then(|| vpls.tally()), total: &total };
+    let (counters, pass_sum) = pixel_pass(film, pass_seed, tally, |tally, (x, y), rng, counters| {
+        let ray = tracer.camera_ray(x, y, rng);
+        tracer.gather(ray, &vpls, min_distance, rng, counters, tally.local.as_deref_mut())
+    });
+    if learning {
+        let total = total.into_inner().unwrap_or_else(|poisoned| poisoned.into_inner());
+        tracer.teach_virtual_lights(&vpls, &total, film.pixels_mut().len(), &mut PathRecorder::new());
+    }
     (counters + light_counters, pass_sum)
+}
+
+/// A worker's sums of what each virtual light gave its pixels, added into the pass's
+/// `total` when the worker is done with it.
+struct Tally<'a> {
+    local: Option<Vec<f32>>,
+    total: &'a std::sync::Mutex<Vec<f32>>,
+}
+
+impl Drop for Tally<'_> {
+    fn drop(&mut self) {
+        let Some(local) = &self.local else { return };
+        let mut total = self.total.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+        for (sum, value) in total.iter_mut().zip(local) {
+            *sum += value;
+        }
+    }
 }
 
 /// One sample per pixel from `sample` (given per-thread scratch made by `scratch`, the

@@ -1,17 +1,19 @@
 //! Instant radiosity (`--integrator vpl`) and animations (`--frames N`): vpl estimates
-//! cornell's image as nee does, to the bias of its clamp; and over 16 frames of a static
+//! cornell's image as nee does, to the bias of its clamp, and vpl-guided (its light
+//! subpaths guided by a learned W) as vpl does; and over 16 frames of a static
 //! scene seen by a moving camera, frames rendered coherently (the same random numbers,
 //! the learners carried over) differ less from one to the next in a fixed region than
 //! frames rendered as separate renders.
 
 mod support;
 
+use guiding_core::{HemisphereGridSettings, SpatialDirectionalTreeSettings};
 use reference_tracer::animation::frame_seed;
 use reference_tracer::cli::{prepare_with_lights, LightRequest};
 use reference_tracer::integrator::Method;
 use reference_tracer::output::Image;
 use reference_tracer::scene_intersector::IntersectorChoice;
-use support::{mean_estimate, render_image, render_settings, settings, Schedule};
+use support::{assert_agree, mean_estimate, render_image, render_scheduled, render_settings, settings, Schedule};
 
 /// Cornell at 24×24, its camera moving 0.3 to the right over the animation (the box is
 /// 2 wide), still looking at its centre.
@@ -82,4 +84,19 @@ fn vpl_estimates_cornell_as_nee_does_to_its_clamp() {
     // a per cent or so of the image's mean.
     let difference = (vpl.mean - nee.mean) / nee.mean;
     assert!(difference.abs() < 0.03, "vpl {} against nee {} ({difference:+.4})", vpl.mean, nee.mean);
+}
+
+#[test]
+fn vpl_guided_estimates_what_vpl_does() {
+    let scene = support::repository_scene("cornell", 16, 16);
+    let (_, vpl) = render_image(&scene, settings(Method::Vpl), None, 400, 5);
+    let guided =
+        reference_tracer::integrator::IntegratorSettings { guide_probability: 0.5, ..settings(Method::VplGuided) };
+    for (label, guide) in
+        [("grid", HemisphereGridSettings::default().into()), ("tree", SpatialDirectionalTreeSettings::default().into())]
+    {
+        let (_, learned) = render_scheduled(&scene, guided, Some(guide), 400, 6, Schedule::Iterative);
+        assert!(learned.training_passes > 0, "{label}: W trained");
+        assert_agree(&format!("vpl-guided {label} against vpl"), &mean_estimate(&learned), &mean_estimate(&vpl));
+    }
 }

@@ -196,7 +196,7 @@ impl Prepared {
         mut on_pass: impl FnMut(&Progress<'_>),
     ) -> Result<(Image, RenderStatistics), String> {
         let method = settings.integrator.method;
-        if method.splats() || method == Method::Vpl {
+        if method.splats() || method.gathers_virtual_lights() {
             let name = method.name();
             if self.device == Device::Gpu {
                 return Err(format!("{name}: the GPU tracer has no light subpaths (use --device cpu)"));
@@ -246,8 +246,10 @@ impl Prepared {
         let lights = self.light_guide.as_mut();
         let gate = self.gate.as_mut();
         let environment = self.environment_guide.as_mut();
-        let bidirectional_guided =
-            guided && settings.integrator.method.bidirectional() && settings.integrator.guide_light_subpaths;
+        // W guides the light subpaths of bdpt-guided and vpl-guided.
+        let bidirectional_guided = guided
+            && ((method.bidirectional() && settings.integrator.guide_light_subpaths)
+                || method.gathers_virtual_lights());
         if bidirectional_guided && self.importance_guide.is_none() {
             if let Some(guide_settings) = self.guide_settings {
                 self.importance_guide = Some(DirectionalGuide::build(&self.scene, guide_settings)?);

@@ -24,9 +24,10 @@ pub(super) struct RenderArgs {
     /// environment), light-guided (light tracing guided by W, the importance learned
     /// from light paths), bdpt (bidirectional: a camera and a light subpath joined in
     /// every way, weighted by exact MIS; scenes without an environment), bdpt-guided
-    /// (both subpaths guided, by Q and W) or vpl (instant radiosity: virtual point lights
+    /// (both subpaths guided, by Q and W), vpl (instant radiosity: virtual point lights
     /// from a few light subpaths per pass, gathered at the first surface; biased by its
-    /// clamp, coherent across the frames of an animation). Default
+    /// clamp, coherent across the frames of an animation) or vpl-guided (its light
+    /// subpaths guided by W, learned from what each virtual light gave). Default
     /// guided-nee: at 60 s, with the guided
     /// defaults, its relMSE ÷ nee's was 0.423 and 0.428 on door 160×120 (seeds 41, 42),
     /// 0.743 and 0.917 on cornell 128²; six scenes in the README.

@@ -214,7 +214,7 @@ impl TraceOptions {
         };
         // Light tracing and bdpt learn their directional guide alone: no focal guide, no
         // learned share, no next-event estimation to kick-start from.
-        let light = method.splats();
+        let light = method.splats() || method.gathers_virtual_lights();
         IntegratorSettings {
             method,
             max_depth: self.max_depth.max(1),

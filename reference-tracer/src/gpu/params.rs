@@ -67,7 +67,7 @@ pub(super) fn method_code(method: Method) -> u32 {
         Method::Guided => 2,
         Method::GuidedNee => 3,
         // Refused before the GPU is reached (`Prepared::render`).
-        Method::Light | Method::LightGuided | Method::Bdpt | Method::BdptGuided | Method::Vpl => {
+        Method::Light | Method::LightGuided | Method::Bdpt | Method::BdptGuided | Method::Vpl | Method::VplGuided => {
             unreachable!("the GPU tracer has no light subpaths")
         }
     }

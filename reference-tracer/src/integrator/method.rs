@@ -26,11 +26,14 @@ pub enum Method {
     /// lights, gathered at each camera ray's first surface that is not all delta, their
     /// geometry term clamped (biased; coherent from frame to frame).
     Vpl,
+    /// Instant radiosity whose light subpaths are guided by W, learned from what each
+    /// virtual point light gave the image.
+    VplGuided,
 }
 
 impl Method {
     /// Every method, in the order the command line lists them.
-    pub const ALL: [Method; 9] = [
+    pub const ALL: [Method; 10] = [
         Method::Pt,
         Method::Nee,
         Method::Guided,
@@ -40,6 +43,7 @@ impl Method {
         Method::Bdpt,
         Method::BdptGuided,
         Method::Vpl,
+        Method::VplGuided,
     ];
 
     /// The command-line name.
@@ -54,6 +58,7 @@ impl Method {
             Method::Bdpt => "bdpt",
             Method::BdptGuided => "bdpt-guided",
             Method::Vpl => "vpl",
+            Method::VplGuided => "vpl-guided",
         }
     }
 
@@ -69,12 +74,20 @@ impl Method {
 
     /// Whether directions are drawn from a learned guide.
     pub fn uses_guide(self) -> bool {
-        matches!(self, Method::Guided | Method::GuidedNee | Method::LightGuided | Method::BdptGuided)
+        matches!(
+            self,
+            Method::Guided | Method::GuidedNee | Method::LightGuided | Method::BdptGuided | Method::VplGuided
+        )
     }
 
     /// Whether paths start on the lights (light tracing).
     pub fn traces_light(self) -> bool {
         matches!(self, Method::Light | Method::LightGuided)
+    }
+
+    /// Whether a pass gathers from virtual point lights (instant radiosity).
+    pub fn gathers_virtual_lights(self) -> bool {
+        matches!(self, Method::Vpl | Method::VplGuided)
     }
 
     /// Whether each sample joins a camera subpath and a light subpath (bdpt).

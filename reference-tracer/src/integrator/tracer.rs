@@ -136,7 +136,8 @@ pub struct PathTracer<'a, I: Intersector, G: Guide> {
     /// bdpt's connection roulette threshold (luminance of a weighted contribution; 0:
     /// every connection traced): see [`with_connection_threshold`](Self::with_connection_threshold).
     pub(super) connection_threshold: f32,
-    /// W, guiding bdpt-guided's light subpaths (see [`with_importance_guide`](Self::with_importance_guide)).
+    /// W, guiding the light subpaths of bdpt-guided and vpl-guided (see
+    /// [`with_importance_guide`](Self::with_importance_guide)).
     pub(super) importance: Option<&'a G>,
 }
 
@@ -226,10 +227,12 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         &self.settings
     }
 
-    /// The tracer with W, the importance bdpt-guided's light subpaths learn and are
-    /// guided by (used by bdpt-guided only).
+    /// The tracer with W, the importance the light subpaths of bdpt-guided and
+    /// vpl-guided learn and are guided by (used by those alone).
     pub fn with_importance_guide(mut self, importance: Option<&'a G>) -> Self {
-        self.importance = importance.filter(|_| self.guide.is_some() && self.settings.method.bidirectional());
+        let method = self.settings.method;
+        let uses = method.bidirectional() || method.gathers_virtual_lights();
+        self.importance = importance.filter(|_| self.guide.is_some() && uses);
         self
     }
 

@@ -12,11 +12,18 @@
 //! delta). The estimate is therefore biased; `nee` and `bdpt` are the unbiased
 //! references. What it buys is coherence: with the same random numbers every pass and
 //! frame the virtual lights do not move, so an animation does not flicker.
+//!
+//! `vpl-guided` draws the light subpaths' directions from W too (with probability
+//! p_guide, as bdpt-guided's light side does) and, in learning passes, teaches W what
+//! each virtual light gave the image: Eq. (1) with the roles swapped, each vertex's
+//! target the image's gain from the next vertex's virtual light per unit of its power,
+//! plus that vertex's own target carried back.
 
 use glam::Vec3;
-use guiding_core::{Guide, Intersector, Pcg32, Ray};
+use guiding_core::{Guide, Intersector, PathRecorder, Pcg32, Ray};
 
 use super::vertex::{SubpathVertex, VertexKind};
+use crate::color::luminance;
 use crate::integrator::counters::PathCounters;
 use crate::integrator::light_path::shading_correction;
 use crate::integrator::tracer::PathTracer;
@@ -25,7 +32,13 @@ use crate::integrator::tracer::PathTracer;
 /// carrying its share of the lights' power.
 #[derive(Clone, Debug)]
 pub struct VirtualPointLights<R> {
-    lights: Vec<SubpathVertex<R>>,
+    /// Every vertex of every light subpath, path after path (delta vertices too, for
+    /// learning), each power weight divided by the subpath count.
+    vertices: Vec<SubpathVertex<R>>,
+    /// Where each subpath starts in `vertices`, and its end.
+    starts: Vec<usize>,
+    /// The vertices that are virtual lights.
+    lights: Vec<u32>,
     /// Light subpaths traced for them.
     paths: u32,
 }
@@ -34,6 +47,12 @@ impl<R> VirtualPointLights<R> {
     /// How many there are.
     pub fn len(&self) -> usize {
         self.lights.len()
+    }
+
+    /// Per vertex of the subpaths, a tally to add what each virtual light gives the
+    /// image into (vpl-guided's learning passes).
+    pub fn tally(&self) -> Vec<f32> {
+        vec![0.0; self.vertices.len()]
     }
 
     /// Whether there are none (a scene without area lights).
@@ -56,7 +75,7 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
         rng: &mut Pcg32,
         counters: &mut PathCounters,
     ) -> VirtualPointLights<G::Region> {
-        let mut lights = Vec::new();
+        let (mut vertices, mut starts, mut lights) = (Vec::new(), vec![0], Vec::new());
         let mut path = Vec::new();
         let share = 1.0 / paths.max(1) as f32;
         for _ in 0..paths {
@@ -68,19 +87,50 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
                     VertexKind::Camera => false,
                 };
                 if keeps && vertex.beta.max_element() > 0.0 && vertex.beta.is_finite() {
-                    let mut light = *vertex;
-                    light.beta *= share;
-                    lights.push(light);
+                    lights.push(vertices.len() as u32);
                 }
+                vertices.push(SubpathVertex { beta: vertex.beta * share, ..*vertex });
             }
+            starts.push(vertices.len());
         }
-        VirtualPointLights { lights, paths }
+        VirtualPointLights { vertices, starts, lights, paths }
+    }
+
+    /// Teaches W what the virtual lights gave the image (vpl-guided, learning passes):
+    /// `tally` holds, per vertex, the luminance its virtual light added over all `pixels`
+    /// pixels ([`gather`](Self::gather)); per unit of the vertex's power weight that is
+    /// the importance arriving along the direction that reached it.
+    pub fn teach_virtual_lights(
+        &self,
+        vpls: &VirtualPointLights<G::Region>,
+        tally: &[f32],
+        pixels: usize,
+        recorder: &mut PathRecorder<G::Region>,
+    ) {
+        if self.importance.is_none() || !self.settings.learn {
+            return;
+        }
+        let mut eye = Vec::new();
+        for range in vpls.starts.windows(2) {
+            let path = &vpls.vertices[range[0]..range[1]];
+            eye.clear();
+            eye.extend(path.iter().zip(&tally[range[0]..range[1]]).map(|(vertex, &sum)| {
+                let power = luminance(vertex.beta);
+                if power > 0.0 {
+                    sum / (pixels.max(1) as f32 * power)
+                } else {
+                    0.0
+                }
+            }));
+            self.teach_light_subpath(path, &eye, recorder);
+        }
     }
 
     /// Radiance arriving along the camera ray `ray`: emission seen directly (through
     /// mirrors and glass too) plus, at the first surface that is not all delta, the
     /// light of every virtual point light in `vpls` that it sees, 1/d² clamped at
-    /// `min_distance` (scene units).
+    /// `min_distance` (scene units). With a `tally` (one entry per vertex of the
+    /// subpaths), each light's luminance here is added to its entry.
     pub fn gather(
         &self,
         mut ray: Ray,
@@ -88,6 +138,7 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
         min_distance: f32,
         rng: &mut Pcg32,
         counters: &mut PathCounters,
+        mut tally: Option<&mut [f32]>,
     ) -> Vec3 {
         let (mut throughput, mut radiance) = (Vec3::ONE, Vec3::ZERO);
         let min_distance2 = min_distance * min_distance;
@@ -114,7 +165,8 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
                 ray = Ray::new(self.spawn(surface.point, surface.geometric_normal, s.wi), s.wi);
                 continue;
             }
-            for light in &vpls.lights {
+            for &index in &vpls.lights {
+                let light = &vpls.vertices[index as usize];
                 let offset = light.point - surface.point;
                 let distance2 = offset.length_squared();
                 if !(distance2.is_finite() && distance2 > 0.0) {
@@ -140,6 +192,9 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
                 }
                 let passed = self.segment_transmittance(surface.point, surface.geometric_normal, light.point, counters);
                 radiance += value * passed;
+                if let Some(tally) = tally.as_deref_mut() {
+                    tally[index as usize] += luminance(value) * passed;
+                }
             }
             if radiance.max_element() > 0.0 {
                 counters.nonzero_paths += 1;
