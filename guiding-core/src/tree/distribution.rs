@@ -143,11 +143,22 @@ impl DirectionalDistribution for TreeDistribution<'_> {
             let pdf = mix * self.uniform_pdf(direction) + (1.0 - mix) * tree;
             return DirectionSample { direction, pdf };
         }
-        let d =
-            from_axis_frame(square_to_direction(quadtree::sample_square(self.nodes, self.root, u, None).0), self.axis);
+        let (p, density) = quadtree::sample_square(self.nodes, self.root, u, None);
+        let d = from_axis_frame(square_to_direction(p), self.axis);
         let c = d.dot(self.normal);
+        if self.mode == HemisphereMode::Fold && c.abs() >= MIN_SAMPLED_COS_THETA {
+            // The folded pdf is the tree's density at the direction and at its mirror: the
+            // descent that drew d gave one of them, one more descent gives the other.
+            // Above the surface d is the direction and its mirror needs the descent; below
+            // it the mirror is, and d (its mirror) has the density drawn.
+            let mirror = d - self.normal * (2.0 * c);
+            let (direction, descended) = if c > 0.0 { (d, mirror) } else { (mirror.normalize(), mirror.normalize()) };
+            let tree = density / SQUARE_TO_SOLID_ANGLE + self.tree_pdf(descended);
+            let pdf = mix * self.uniform_pdf(direction) + (1.0 - mix) * tree;
+            return DirectionSample { direction, pdf };
+        }
         let direction = if self.mode == HemisphereMode::Fold && c < MIN_SAMPLED_COS_THETA {
-            // Mirrored in the tangent plane, kept just above it.
+            // Within reach of the horizon: mirrored in the tangent plane, kept just above it.
             let mirrored = d - self.normal * (c - c.abs().max(MIN_SAMPLED_COS_THETA));
             mirrored.normalize()
         } else {
