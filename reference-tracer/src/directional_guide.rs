@@ -9,6 +9,17 @@ use guiding_core::{
 
 use crate::scene::Scene;
 
+/// Code that runs with a guide's concrete structure: [`DirectionalGuide::visit`] hands
+/// it the guide, and W (a guide of the same structure) where there is one, as that
+/// structure's own type. This is the one place outside the structures themselves that
+/// the tracer's generic code meets the set of structures.
+pub trait GuideVisitor {
+    /// What the visit gives back.
+    type Output;
+    /// Runs with the guide `guide` and W `importance`, both of structure `G`.
+    fn visit<G: Guide>(self, guide: &mut G, importance: Option<&mut G>) -> Self::Output;
+}
+
 /// Which Q structure guides directions.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum GuideStructure {
@@ -119,6 +130,41 @@ impl DirectionalGuide {
                 SpatialDirectionalTree::new(low, high, settings)
                     .map(DirectionalGuide::Tree)
                     .map_err(|e| format!("tree guide: {e}"))
+            }
+        }
+    }
+
+    /// Runs `visitor` with this guide and W (`importance`, used only where it is of the
+    /// same structure) as their concrete type.
+    pub fn visit<V: GuideVisitor>(&mut self, importance: Option<&mut DirectionalGuide>, visitor: V) -> V::Output {
+        match self {
+            DirectionalGuide::Hemisphere(guide) => {
+                let importance = match importance {
+                    Some(DirectionalGuide::Hemisphere(w)) => Some(w.as_mut()),
+                    _ => None,
+                };
+                visitor.visit(guide.as_mut(), importance)
+            }
+            DirectionalGuide::Volume(guide) => {
+                let importance = match importance {
+                    Some(DirectionalGuide::Volume(w)) => Some(w),
+                    _ => None,
+                };
+                visitor.visit(guide, importance)
+            }
+            DirectionalGuide::Mixture(guide) => {
+                let importance = match importance {
+                    Some(DirectionalGuide::Mixture(w)) => Some(w),
+                    _ => None,
+                };
+                visitor.visit(guide, importance)
+            }
+            DirectionalGuide::Tree(guide) => {
+                let importance = match importance {
+                    Some(DirectionalGuide::Tree(w)) => Some(w),
+                    _ => None,
+                };
+                visitor.visit(guide, importance)
             }
         }
     }

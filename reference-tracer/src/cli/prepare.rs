@@ -7,12 +7,12 @@ use std::time::Instant;
 use crate::scene_intersector::{IntersectorChoice, SceneIntersector};
 use guiding_core::environment::{EnvironmentTiles, SunDisk};
 use guiding_core::{
-    EnvTileGuide, EnvTileGuideSettings, FocalGuide, FocalGuideSettings, HemisphereGrid, LightGuide, LightGuideSettings,
-    NextEventGate, NextEventGateSettings, StrategyShares,
+    EnvTileGuide, EnvTileGuideSettings, FocalGuide, FocalGuideSettings, Guide, HemisphereGrid, LightGuide,
+    LightGuideSettings, NextEventGate, NextEventGateSettings, StrategyShares,
 };
 
 use super::options::GUIDE_SHARE_COST;
-use crate::directional_guide::{DirectionalGuide, DirectionalGuideSettings};
+use crate::directional_guide::{DirectionalGuide, DirectionalGuideSettings, GuideVisitor};
 use crate::integrator::{EnvironmentSampling, LightSelection, Method};
 use crate::output::Image;
 use crate::plan::{auto_light_split, GuidePlan};
@@ -139,28 +139,18 @@ impl Prepared {
         if guide.is_some() && settings.integrator.learned_guide_share {
             return Err("the GPU tracer has no learned guide share (--guide-share fixed)".into());
         }
-        if let Some(DirectionalGuide::Tree(_)) = guide.as_deref() {
-            return Err("the GPU tracer has no tree guide yet (--guide hemisphere, volume or mixture)".into());
-        }
+        // Refused before the GPU starts: a structure it has no buffers for.
+        let uploaded = guide.as_deref().map(GpuGuide::of).transpose()?;
         if self.gpu.is_none() {
             let context = crate::gpu::GpuContext::new()?;
             eprintln!("gpu: {}", context.describe());
-            let uploaded = match guide.as_deref() {
-                Some(DirectionalGuide::Hemisphere(grid)) => Some(GpuGuide::Hemisphere(grid)),
-                Some(DirectionalGuide::Volume(volume)) => Some(GpuGuide::Volume(volume)),
-                Some(DirectionalGuide::Mixture(mixture)) => Some(GpuGuide::Mixture(mixture)),
-                Some(DirectionalGuide::Tree(_)) | None => None,
-            };
             let tracer = crate::gpu::GpuTracer::new(context, &self.scene, &settings.integrator, uploaded)?;
             self.gpu = Some(tracer);
         }
         let gpu = self.gpu.as_mut().ok_or("no GPU tracer")?;
         let result = gpu.render(settings, on_pass)?;
-        match guide {
-            Some(DirectionalGuide::Hemisphere(grid)) => gpu.download_guide(grid)?,
-            Some(DirectionalGuide::Volume(volume)) => gpu.download_volume(volume)?,
-            Some(DirectionalGuide::Mixture(mixture)) => gpu.download_mixture(mixture)?,
-            Some(DirectionalGuide::Tree(_)) | None => {}
+        if let Some(guide) = guide {
+            gpu.download(guide)?;
         }
         Ok(result)
     }
@@ -193,7 +183,7 @@ impl Prepared {
     pub fn render(
         &mut self,
         settings: &RenderSettings,
-        mut on_pass: impl FnMut(&Progress<'_>),
+        on_pass: impl FnMut(&Progress<'_>),
     ) -> Result<(Image, RenderStatistics), String> {
         let method = settings.integrator.method;
         if method.splats() || method.gathers_virtual_lights() {
@@ -256,49 +246,17 @@ impl Prepared {
             }
         }
         let importance = self.importance_guide.as_mut().filter(|_| bidirectional_guided);
-        let (scene, intersector) = (&self.scene, &self.intersector);
+        let job = RenderJob {
+            scene: &self.scene,
+            intersector: &self.intersector,
+            learners: Learners { focal, guide_shares, lights, gate, environment, ..Learners::default() },
+            settings,
+            on_pass,
+        };
         Ok(match self.guide.as_mut().filter(|_| guided) {
-            Some(DirectionalGuide::Hemisphere(guide)) => {
-                let importance = match importance {
-                    Some(DirectionalGuide::Hemisphere(w)) => Some(w.as_mut()),
-                    _ => None,
-                };
-                let directions = Some(guide.as_mut());
-                let learners = Learners { directions, importance, focal, guide_shares, lights, gate, environment };
-                render(scene, intersector, learners, settings, &mut on_pass)
-            }
-            Some(DirectionalGuide::Volume(guide)) => {
-                let importance = match importance {
-                    Some(DirectionalGuide::Volume(w)) => Some(w),
-                    _ => None,
-                };
-                let directions = Some(guide);
-                let learners = Learners { directions, importance, focal, guide_shares, lights, gate, environment };
-                render(scene, intersector, learners, settings, &mut on_pass)
-            }
-            Some(DirectionalGuide::Mixture(guide)) => {
-                let importance = match importance {
-                    Some(DirectionalGuide::Mixture(w)) => Some(w),
-                    _ => None,
-                };
-                let directions = Some(guide);
-                let learners = Learners { directions, importance, focal, guide_shares, lights, gate, environment };
-                render(scene, intersector, learners, settings, &mut on_pass)
-            }
-            Some(DirectionalGuide::Tree(guide)) => {
-                let importance = match importance {
-                    Some(DirectionalGuide::Tree(w)) => Some(w),
-                    _ => None,
-                };
-                let directions = Some(guide);
-                let learners = Learners { directions, importance, focal, guide_shares, lights, gate, environment };
-                render(scene, intersector, learners, settings, &mut on_pass)
-            }
-            None => {
-                let learners: Learners<'_, HemisphereGrid> =
-                    Learners { directions: None, importance: None, focal, guide_shares, lights, gate, environment };
-                render(scene, intersector, learners, settings, &mut on_pass)
-            }
+            Some(guide) => guide.visit(importance, job),
+            // No directional guide: the grid's type stands in for the structure.
+            None => job.run::<HemisphereGrid>(None, None),
         })
     }
 }
@@ -311,6 +269,33 @@ pub fn prepare(
 ) -> Result<Prepared, String> {
     let plain = LightRequest::new(Some(LightSelection::Power), Some(EnvironmentSampling::Luminance), true);
     prepare_with_lights(path, intersector, guide, plain)
+}
+
+/// A CPU render waiting for the directional guide's structure: every learner but the
+/// guide and W, which [`DirectionalGuide::visit`] hands over typed.
+struct RenderJob<'a, F> {
+    scene: &'a Scene,
+    intersector: &'a SceneIntersector,
+    learners: Learners<'a, HemisphereGrid>,
+    settings: &'a RenderSettings,
+    on_pass: F,
+}
+
+impl<F: FnMut(&Progress<'_>)> RenderJob<'_, F> {
+    /// Renders with the guide `directions` and W `importance` of structure `G`.
+    fn run<G: Guide>(self, directions: Option<&mut G>, importance: Option<&mut G>) -> (Image, RenderStatistics) {
+        let Learners { focal, guide_shares, lights, gate, environment, .. } = self.learners;
+        let learners = Learners { directions, importance, focal, guide_shares, lights, gate, environment };
+        render(self.scene, self.intersector, learners, self.settings, self.on_pass)
+    }
+}
+
+impl<F: FnMut(&Progress<'_>)> GuideVisitor for RenderJob<'_, F> {
+    type Output = (Image, RenderStatistics);
+
+    fn visit<G: Guide>(self, guide: &mut G, importance: Option<&mut G>) -> Self::Output {
+        self.run(Some(guide), importance)
+    }
 }
 
 /// How lights and the environment are to be sampled: choices, or `None` for the plan

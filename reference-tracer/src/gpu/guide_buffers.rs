@@ -9,6 +9,8 @@ use std::sync::atomic::{AtomicU32, Ordering};
 use guiding_core::{GaussianMixture, Guide, HemisphereGrid, HemisphereMapping, IrradianceVolume, LearningRate};
 use wgpu::util::DeviceExt;
 
+use crate::directional_guide::DirectionalGuide;
+
 /// The structure the GPU guides with.
 #[derive(Clone, Copy)]
 pub enum GpuGuide<'a> {
@@ -18,6 +20,20 @@ pub enum GpuGuide<'a> {
     Volume(&'a IrradianceVolume),
     /// Grid regions with vMF mixtures (the M-step runs on the host between passes).
     Mixture(&'a GaussianMixture),
+}
+
+impl<'a> GpuGuide<'a> {
+    /// The GPU's view of `guide`; the spatial × directional tree has none yet.
+    pub fn of(guide: &'a DirectionalGuide) -> Result<Self, String> {
+        match guide {
+            DirectionalGuide::Hemisphere(grid) => Ok(GpuGuide::Hemisphere(grid)),
+            DirectionalGuide::Volume(volume) => Ok(GpuGuide::Volume(volume)),
+            DirectionalGuide::Mixture(mixture) => Ok(GpuGuide::Mixture(mixture)),
+            DirectionalGuide::Tree(_) => {
+                Err("the GPU tracer has no tree guide yet (--guide hemisphere, volume or mixture)".into())
+            }
+        }
+    }
 }
 
 impl<'a> From<&'a GaussianMixture> for GpuGuide<'a> {

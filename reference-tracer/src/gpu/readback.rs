@@ -5,8 +5,20 @@ use glam::Vec3;
 use guiding_core::{GaussianMixture, Guide, HemisphereGrid, IrradianceVolume};
 
 use super::{entry_point, guide_buffers, store_learned, GpuTracer};
+use crate::directional_guide::DirectionalGuide;
 
 impl GpuTracer {
+    /// Reads what `guide` (the guide this tracer was built with) learned on the GPU back
+    /// into it.
+    pub fn download(&self, guide: &mut DirectionalGuide) -> Result<(), String> {
+        match guide {
+            DirectionalGuide::Hemisphere(grid) => self.download_guide(grid),
+            DirectionalGuide::Volume(volume) => self.download_volume(volume),
+            DirectionalGuide::Mixture(mixture) => self.download_mixture(mixture),
+            DirectionalGuide::Tree(_) => Err("the GPU tracer has no tree guide yet".into()),
+        }
+    }
+
     /// Replaces `mixture` by the uploaded one as it learned on the GPU (every pass's
     /// batch already absorbed on the host).
     pub fn download_mixture(&self, mixture: &mut GaussianMixture) -> Result<(), String> {
