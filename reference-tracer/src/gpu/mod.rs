@@ -1,5 +1,5 @@
 //! The GPU tracer (feature `gpu`): the same estimators as the CPU tracer as one wgpu
-//! compute shader (`tracer.wgsl`), on any Vulkan, Metal or DX12 adapter — in CI, Mesa's software
+//! compute shader (the files of `shader/`, joined by `shader.rs`), on any Vulkan, Metal or DX12 adapter — in CI, Mesa's software
 //! rasteriser lavapipe.
 //!
 //! Design: a megakernel — one invocation traces one pixel's whole path per pass, in
@@ -53,6 +53,7 @@ mod guide_buffers;
 mod params;
 mod readback;
 mod scene_buffers;
+mod shader;
 
 use std::time::Instant;
 
@@ -73,7 +74,7 @@ use crate::output::Image;
 use crate::render::{end_of_pass, pass_seed, PassFate, Progress, RenderSettings, RenderStatistics};
 use crate::scene::Scene;
 
-/// The compute pipeline of `tracer.wgsl`'s entry point `name` (layout from the shader).
+/// The compute pipeline of the shader's entry point `name` (layout from the shader).
 fn entry_point(device: &wgpu::Device, module: &wgpu::ShaderModule, name: &str) -> wgpu::ComputePipeline {
     device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
         label: Some(name),
@@ -88,7 +89,7 @@ fn entry_point(device: &wgpu::Device, module: &wgpu::ShaderModule, name: &str) -
 /// A scene uploaded to a GPU, ready to render passes.
 pub struct GpuTracer {
     context: GpuContext,
-    /// `tracer.wgsl`, compiled once for every entry point.
+    /// The shader ([`shader::source`]), compiled once for every entry point.
     module: wgpu::ShaderModule,
     pipeline: wgpu::ComputePipeline,
     bind_group: wgpu::BindGroup,
@@ -255,8 +256,8 @@ impl GpuTracer {
             mapped_at_creation: false,
         });
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("tracer.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(include_str!("tracer.wgsl").into()),
+            label: Some("tracer"),
+            source: wgpu::ShaderSource::Wgsl(shader::source().into()),
         });
         let pipeline = entry_point(device, &module, "trace");
         let rebuild = entry_point(device, &module, "rebuild");
@@ -462,23 +463,5 @@ impl GpuTracer {
         mixture.rebuild_sampling();
         self.guide.write_mixture(&self.context.queue, mixture);
         Ok(())
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    /// The shader parses and validates (naga, as wgpu does) without any GPU.
-    #[test]
-    fn the_shader_is_valid_wgsl() {
-        use wgpu::naga;
-        let source = include_str!("tracer.wgsl");
-        let module = naga::front::wgsl::parse_str(source).unwrap_or_else(|e| panic!("{}", e.emit_to_string(source)));
-        let mut validator =
-            naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all());
-        if let Err(e) = validator.validate(&module) {
-            panic!("{}", e.emit_to_string(source));
-        }
-        let entry_points: Vec<&str> = module.entry_points.iter().map(|e| e.name.as_str()).collect();
-        assert_eq!(entry_points, ["sample_guide", "rebuild", "trace"]);
     }
 }

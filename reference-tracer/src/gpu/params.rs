@@ -1,4 +1,4 @@
-//! The uniform block the shader reads (`tracer.wgsl`'s `Params`) and the codes its
+//! The uniform block the shader reads (`shader/header.wgsl`'s `Params`) and the codes its
 //! fields carry for the method, the guide structure and the learning rate.
 
 use bytemuck::{Pod, Zeroable};
@@ -7,7 +7,7 @@ use guiding_core::LearningRate;
 
 use crate::integrator::Method;
 
-/// The uniform block of `tracer.wgsl` (its `Params`).
+/// The uniform block of the shader (`shader/header.wgsl`'s `Params`).
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
 #[repr(C)]
 pub(super) struct Params {

@@ -1,4 +1,4 @@
-//! A scene as the flat arrays `tracer.wgsl` reads (see its bindings): built once, then
+//! A scene as the flat arrays the shader reads (see `shader/header.wgsl`'s bindings): built once, then
 //! uploaded as storage buffers.
 
 use bytemuck::{Pod, Zeroable};
@@ -7,7 +7,13 @@ use wgpu::util::DeviceExt;
 use crate::material::Surface;
 use crate::scene::Scene;
 
-/// `tracer.wgsl`'s `Material`: 80 bytes.
+/// `GpuMaterial::kind` of each surface the shader has (its DIFFUSE, CONDUCTOR, …).
+pub(super) const MATERIAL_DIFFUSE: u32 = 0;
+pub(super) const MATERIAL_CONDUCTOR: u32 = 1;
+pub(super) const MATERIAL_DIELECTRIC: u32 = 2;
+pub(super) const MATERIAL_THIN_DIELECTRIC: u32 = 3;
+
+/// `shader/header.wgsl`'s `Material`: 80 bytes.
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
 #[repr(C)]
 struct GpuMaterial {
@@ -21,7 +27,7 @@ struct GpuMaterial {
     k: [f32; 4],
 }
 
-/// `tracer.wgsl`'s `Light`: 64 bytes.
+/// `shader/header.wgsl`'s `Light`: 64 bytes.
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
 #[repr(C)]
 struct GpuLight {
@@ -33,7 +39,7 @@ struct GpuLight {
     emission: [f32; 4],
 }
 
-/// `tracer.wgsl`'s `Node` (guiding-obvhs's `FlatBvhNode`): 32 bytes.
+/// `shader/header.wgsl`'s `Node` (guiding-obvhs's `FlatBvhNode`): 32 bytes.
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
 #[repr(C)]
 struct GpuNode {
@@ -116,11 +122,14 @@ impl SceneBuffers {
             .map(|m| {
                 let emission = m.emission.extend(0.0).to_array();
                 match m.surface {
-                    Surface::Diffuse { albedo } => {
-                        GpuMaterial { kind: 0, albedo: albedo.extend(0.0).to_array(), emission, ..Default::default() }
-                    }
+                    Surface::Diffuse { albedo } => GpuMaterial {
+                        kind: MATERIAL_DIFFUSE,
+                        albedo: albedo.extend(0.0).to_array(),
+                        emission,
+                        ..Default::default()
+                    },
                     Surface::Conductor { specular, alpha, ior } => GpuMaterial {
-                        kind: 1,
+                        kind: MATERIAL_CONDUCTOR,
                         alpha,
                         fresnel: ior.is_some() as u32,
                         albedo: specular.extend(0.0).to_array(),
@@ -129,8 +138,12 @@ impl SceneBuffers {
                         k: ior.map_or([0.0; 4], |i| i.k.extend(0.0).to_array()),
                         ior: 0.0,
                     },
-                    Surface::Dielectric { ior } => GpuMaterial { kind: 2, ior, emission, ..Default::default() },
-                    Surface::ThinDielectric { ior } => GpuMaterial { kind: 3, ior, emission, ..Default::default() },
+                    Surface::Dielectric { ior } => {
+                        GpuMaterial { kind: MATERIAL_DIELECTRIC, ior, emission, ..Default::default() }
+                    }
+                    Surface::ThinDielectric { ior } => {
+                        GpuMaterial { kind: MATERIAL_THIN_DIELECTRIC, ior, emission, ..Default::default() }
+                    }
                     Surface::Plastic(_) => GpuMaterial::default(),
                 }
             })

@@ -1,0 +1,85 @@
+//! The GPU tracer's WGSL source: the files of `shader/`, one per concern as the Rust
+//! modules are split (header: bindings and structs; rng; intersect; sampling; bsdf;
+//! lights; one file per guide structure and the dispatch between them; trace: the
+//! path, learning and the entry points), concatenated in order, after the constants
+//! that carry Rust's codes (methods, material kinds, guide structures), generated here
+//! from the Rust values themselves so the two sides cannot drift.
+
+use std::fmt::Write;
+
+use super::params::{method_code, GUIDE_HEMISPHERE, GUIDE_MIXTURE, GUIDE_VOLUME};
+use super::scene_buffers::{MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC, MATERIAL_DIFFUSE, MATERIAL_THIN_DIELECTRIC};
+use crate::integrator::Method;
+
+/// The shader's files, in the order they are joined.
+const PARTS: [&str; 11] = [
+    include_str!("shader/header.wgsl"),
+    include_str!("shader/rng.wgsl"),
+    include_str!("shader/intersect.wgsl"),
+    include_str!("shader/sampling.wgsl"),
+    include_str!("shader/bsdf.wgsl"),
+    include_str!("shader/lights.wgsl"),
+    include_str!("shader/guide_hemisphere.wgsl"),
+    include_str!("shader/guide_volume.wgsl"),
+    include_str!("shader/guide_mixture.wgsl"),
+    include_str!("shader/guide.wgsl"),
+    include_str!("shader/trace.wgsl"),
+];
+
+/// The WGSL constants that must equal Rust's codes, by name.
+fn generated_constants() -> [(&'static str, u32); 11] {
+    [
+        ("METHOD_PT", method_code(Method::Pt)),
+        ("METHOD_NEE", method_code(Method::Nee)),
+        ("METHOD_GUIDED", method_code(Method::Guided)),
+        ("METHOD_GUIDED_NEE", method_code(Method::GuidedNee)),
+        ("DIFFUSE", MATERIAL_DIFFUSE),
+        ("CONDUCTOR", MATERIAL_CONDUCTOR),
+        ("DIELECTRIC", MATERIAL_DIELECTRIC),
+        ("THIN_DIELECTRIC", MATERIAL_THIN_DIELECTRIC),
+        ("GUIDE_HEMISPHERE", GUIDE_HEMISPHERE),
+        ("GUIDE_VOLUME", GUIDE_VOLUME),
+        ("GUIDE_MIXTURE", GUIDE_MIXTURE),
+    ]
+}
+
+/// The whole shader.
+pub(super) fn source() -> String {
+    let mut source = String::from("// Generated from Rust (gpu/shader.rs): codes shared with the host.\n");
+    for (name, value) in generated_constants() {
+        // Writing to a String cannot fail.
+        let _ = writeln!(source, "const {name}: u32 = {value}u;");
+    }
+    source.push('\n');
+    PARTS.iter().for_each(|part| source.push_str(part));
+    source
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The shader parses and validates (naga, as wgpu does) without any GPU.
+    #[test]
+    fn the_shader_is_valid_wgsl() {
+        use wgpu::naga;
+        let source = source();
+        let module = naga::front::wgsl::parse_str(&source).unwrap_or_else(|e| panic!("{}", e.emit_to_string(&source)));
+        let mut validator =
+            naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all());
+        if let Err(e) = validator.validate(&module) {
+            panic!("{}", e.emit_to_string(&source));
+        }
+        let entry_points: Vec<&str> = module.entry_points.iter().map(|e| e.name.as_str()).collect();
+        assert_eq!(entry_points, ["sample_guide", "rebuild", "trace"]);
+    }
+
+    /// No file defines a constant the host generates (it would clash, or drift).
+    #[test]
+    fn generated_constants_are_defined_nowhere_else() {
+        for (name, _) in generated_constants() {
+            let definition = format!("const {name}:");
+            assert!(PARTS.iter().all(|part| !part.contains(&definition)), "{name} is defined in a shader file");
+        }
+    }
+}

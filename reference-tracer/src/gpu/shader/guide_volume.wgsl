@@ -1,0 +1,120 @@
+// ---------------------------------------------------------------------------------
+// The irradiance volume (guiding-core's volume/): leaf lookup down the octree, the
+// whole sphere in equal-area patches in world axes, sampling folded onto the normal's
+// hemisphere, and the Lambertian integral from each leaf's spherical harmonics.
+
+const LEAF_BIT: u32 = 0x80000000u;
+const MAX_TREE_DEPTH: u32 = 32u;
+
+// CellGrid (the volume's and the mixture's): `p` in cell units from the low corner, the
+// cell holding it (the nearest one outside) and that cell's index.
+struct GridCell {
+    scaled: vec3<f32>,
+    cell: vec3<i32>,
+    index: u32,
+}
+
+fn grid_cell(p: vec3<f32>) -> GridCell {
+    let resolution = vec3<i32>(params.volume_grid.xyz);
+    var g: GridCell;
+    g.scaled = max((p - params.volume_low.xyz) * params.volume_scale.xyz, vec3<f32>(0.0));
+    g.cell = min(vec3<i32>(g.scaled), resolution - vec3<i32>(1));
+    g.index = u32((g.cell.z * resolution.y + g.cell.y) * resolution.x + g.cell.x);
+    return g;
+}
+
+// IrradianceVolume::leaf_at: the grid cell holding `p` (the nearest one outside), then
+// down by octants; NO_PROBE for a non-finite point.
+fn volume_leaf(p: vec3<f32>) -> u32 {
+    if (!all(abs(p) < vec3<f32>(INFINITY))) { return NO_PROBE; }
+    let g = grid_cell(p);
+    var offset = clamp(g.scaled - vec3<f32>(g.cell), vec3<f32>(0.0), vec3<f32>(1.0));
+    var entry = index_table[g.index];
+    for (var depth = 0u; depth < MAX_TREE_DEPTH && (entry & LEAF_BIT) == 0u; depth += 1u) {
+        let upper = offset >= vec3<f32>(0.5);
+        let octant = select(0u, 1u, upper.x) | select(0u, 2u, upper.y) | select(0u, 4u, upper.z);
+        offset = offset * 2.0 - select(vec3<f32>(0.0), vec3<f32>(1.0), upper);
+        entry = index_table[entry + octant];
+    }
+    if ((entry & LEAF_BIT) == 0u) { return NO_PROBE; }
+    return entry & ~LEAF_BIT;
+}
+
+// SphereLayout::patch_of: bands of z, sectors of φ about the world z axis.
+fn sphere_patch_of(direction: vec3<f32>) -> u32 {
+    let d = normalize(direction);
+    let bands = params.guide_shape.x;
+    let sectors = params.guide_shape.y;
+    let band = min(u32((d.z + 1.0) * 0.5 * f32(bands)), bands - 1u);
+    var phi = atan2(d.y, d.x);
+    if (phi < 0.0) { phi += 2.0 * PI; }
+    let sector = min(u32(phi * (0.5 / PI) * f32(sectors)), sectors - 1u);
+    return band * sectors + sector;
+}
+
+// SphereLayout::direction_in_patch: uniform in solid angle inside the patch.
+fn sphere_direction_in_patch(entry: u32, u: vec2<f32>) -> vec3<f32> {
+    let bands = params.guide_shape.x;
+    let sectors = params.guide_shape.y;
+    let z = clamp(-1.0 + 2.0 * (f32(entry / sectors) + u.x) / f32(bands), -1.0, 1.0);
+    return spherical_direction(z, 2.0 * PI * (f32(entry % sectors) + u.y) / f32(sectors));
+}
+
+fn mirror(d: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
+    return normalize(d - 2.0 * dot(d, n) * n);
+}
+
+// guiding-core's fold_onto_hemisphere: below the surface mirrored, cos θ ≥ MIN_SAMPLED_COS.
+fn fold_onto_hemisphere(direction: vec3<f32>, normal: vec3<f32>) -> vec3<f32> {
+    var d = direction;
+    if (dot(d, normal) < 0.0) { d = mirror(d, normal); }
+    let cos_theta = dot(d, normal);
+    if (cos_theta < MIN_SAMPLED_COS) { d = normalize(d + (MIN_SAMPLED_COS - cos_theta) * normal); }
+    return d;
+}
+
+fn sphere_pdf(leaf: u32, d: vec3<f32>) -> f32 {
+    return patch_probability(leaf, sphere_patch_of(d)) * f32(params.guide.w) / (4.0 * PI);
+}
+
+// VolumeDistribution::pdf: p(ω) + p(mirror ω) above the surface, 0 below.
+fn volume_pdf(leaf: u32, normal: vec3<f32>, wi: vec3<f32>) -> f32 {
+    if (!(dot(wi, normal) >= 0.0)) { return 0.0; }
+    return sphere_pdf(leaf, wi) + sphere_pdf(leaf, mirror(wi, normal));
+}
+
+fn volume_sample(leaf: u32, normal: vec3<f32>, u: vec2<f32>) -> GuideSample {
+    let c = invert_cdf(leaf, u.x);
+    let d = fold_onto_hemisphere(sphere_direction_in_patch(c.entry, vec2<f32>(c.rest, u.y)), normal);
+    var s: GuideSample;
+    s.wi = d;
+    s.pdf = volume_pdf(leaf, normal, d);
+    return s;
+}
+
+// The nine real spherical harmonics of order ≤ 2 at unit `d` (irradiance_sh.rs).
+fn sh_basis(d: vec3<f32>) -> array<f32, 9> {
+    return array<f32, 9>(
+        0.282095,
+        0.488603 * d.y,
+        0.488603 * d.z,
+        0.488603 * d.x,
+        1.092548 * d.x * d.y,
+        1.092548 * d.y * d.z,
+        0.315392 * (3.0 * d.z * d.z - 1.0),
+        1.092548 * d.x * d.z,
+        0.546274 * (d.x * d.x - d.y * d.y),
+    );
+}
+
+// ∫ Q·max(0, n·ω)/π dω from leaf `leaf`'s coefficients (Ramamoorthi–Hanrahan's band
+// weights Â_l/π), clamped at 0.
+fn sh_cosine_integral(leaf: u32, normal: vec3<f32>) -> f32 {
+    let weights = array<f32, 9>(1.0, 0.6666667, 0.6666667, 0.6666667, 0.25, 0.25, 0.25, 0.25, 0.25);
+    let y = sh_basis(normal);
+    var sum = 0.0;
+    for (var i = 0u; i < 9u; i += 1u) {
+        sum += weights[i] * bitcast<f32>(atomicLoad(&integral_terms[9u * leaf + i])) * y[i];
+    }
+    return max(sum, 0.0);
+}
