@@ -17,7 +17,7 @@ use reference_tracer::integrator::{EnvironmentSampling, LightSelection, Method};
 use reference_tracer::render::{Budget, RenderSettings};
 use reference_tracer::scene_intersector::IntersectorChoice;
 use serde_json::json;
-use support::{mean_estimate, render_scene, settings, Schedule};
+use support::{mean_estimate, render_scene, settings, MeanEstimate, Schedule};
 
 /// A closed box whose inward faces all emit Le and reflect with albedo ρ: the radiance
 /// everywhere is Le/(1-ρ).
@@ -193,15 +193,39 @@ fn methods_and_guides(probes: usize) -> Vec<(String, Method, Option<DirectionalG
 /// Every method and rule agrees with a long `nee` render of the same scene; pt renders
 /// four times the passes, the guided methods without next-event estimation
 /// `light_search` times.
+///
+/// Without next-event estimation a pass's mean rests on the few paths that scatter onto
+/// a light: its distribution is heavy-tailed, and a run that happens to miss the rare
+/// large passes underestimates its mean and its standard error together (door: 0.0234 ±
+/// 0.0050, 0.0259 ± 0.0041 and 0.0270 ± 0.0040 against nee's 0.0442 ± 0.0011, one run
+/// in four, while 4096 passes of such a variant gave 0.0410–0.0459 ± 0.0015 against
+/// nee's 0.0421 ± 0.0004). So these variants' per-pass variance is taken as at least
+/// the variance pooled over all of them (they estimate the same image with like
+/// estimators): a run that missed the rare passes borrows the spread the others saw.
 fn assert_means_agree(scene: &std::path::Path, probes: usize, spp: u32, reference_spp: u32, light_search: u32) {
     let reference = mean_estimate(&render_scene(scene, settings(Method::Nee), None, reference_spp, 11));
+    let mut estimates = Vec::new();
     for (i, (name, method, guide)) in methods_and_guides(probes).into_iter().enumerate() {
+        let heavy_tailed = method != Method::Pt && !method.uses_nee();
         let spp = match method {
             Method::Pt => 4 * spp,
-            _ if !method.uses_nee() => light_search * spp,
+            _ if heavy_tailed => light_search * spp,
             _ => spp,
         };
         let estimate = mean_estimate(&render_scene(scene, settings(method), guide, spp, 100 + i as u64));
+        estimates.push((name, heavy_tailed, spp as f64, estimate));
+    }
+    // Per-pass variance pooled over the heavy-tailed variants (degrees of freedom as weights).
+    let (mut sum, mut freedom) = (0.0, 0.0);
+    for (_, _, n, estimate) in estimates.iter().filter(|e| e.1) {
+        sum += (n - 1.0) * estimate.standard_error.powi(2) * n;
+        freedom += n - 1.0;
+    }
+    let pooled_variance = if freedom > 0.0 { sum / freedom } else { 0.0 };
+    for (name, heavy_tailed, n, estimate) in estimates {
+        let own_variance = estimate.standard_error.powi(2) * n;
+        let variance = if heavy_tailed { own_variance.max(pooled_variance) } else { own_variance };
+        let estimate = MeanEstimate { standard_error: (variance / n).sqrt(), ..estimate };
         support::assert_agree(&format!("{name} vs nee"), &estimate, &reference);
     }
 }
