@@ -8,19 +8,25 @@ use glam::{Vec2, Vec3};
 
 use super::sphere_layout::SphereLayout;
 
+/// The normalisation constants of the real SH basis of order ≤ 2, in the order
+/// [`basis`] uses them: Y₀₀; the three l = 1; xy, yz and xz; 3z² − 1; x² − y². A GPU
+/// tracer evaluating the same basis takes them from here.
+pub const SH_NORMALIZATION: [f32; 5] = [0.282_095, 0.488_603, 1.092_548, 0.315_392, 0.546_274];
+
 /// The nine real SH basis functions Y_lm (l ≤ 2) at unit direction `d`.
 #[inline]
 fn basis(d: Vec3) -> [f32; 9] {
+    let [k0, k1, k2, k3, k4] = SH_NORMALIZATION;
     [
-        0.282_095,
-        0.488_603 * d.y,
-        0.488_603 * d.z,
-        0.488_603 * d.x,
-        1.092_548 * d.x * d.y,
-        1.092_548 * d.y * d.z,
-        0.315_392 * (3.0 * d.z * d.z - 1.0),
-        1.092_548 * d.x * d.z,
-        0.546_274 * (d.x * d.x - d.y * d.y),
+        k0,
+        k1 * d.y,
+        k1 * d.z,
+        k1 * d.x,
+        k2 * d.x * d.y,
+        k2 * d.y * d.z,
+        k3 * (3.0 * d.z * d.z - 1.0),
+        k2 * d.x * d.z,
+        k4 * (d.x * d.x - d.y * d.y),
     ]
 }
 

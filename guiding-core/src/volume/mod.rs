@@ -10,5 +10,6 @@ mod settings;
 mod sphere_layout;
 
 pub use guide::{IrradianceVolume, VolumeDistribution, VolumeRegion};
+pub use irradiance_sh::SH_NORMALIZATION;
 pub use settings::IrradianceVolumeSettings;
 pub use sphere_layout::SphereLayout;

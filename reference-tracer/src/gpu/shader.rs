@@ -2,14 +2,16 @@
 //! modules are split (header: bindings and structs; rng; intersect; sampling; bsdf;
 //! lights; one file per guide structure and the dispatch between them; trace: the
 //! path, learning and the entry points), concatenated in order, after the constants
-//! that carry Rust's codes (methods, material kinds, guide structures), generated here
-//! from the Rust values themselves so the two sides cannot drift.
+//! that carry Rust's codes (methods, material kinds, guide structures) and guiding-core's
+//! spherical-harmonic normalisation, generated here from the Rust values themselves so
+//! the two sides cannot drift.
 
 use std::fmt::Write;
 
 use super::params::{method_code, GUIDE_HEMISPHERE, GUIDE_MIXTURE, GUIDE_VOLUME};
 use super::scene_buffers::{MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC, MATERIAL_DIFFUSE, MATERIAL_THIN_DIELECTRIC};
 use crate::integrator::Method;
+use guiding_core::volume::SH_NORMALIZATION;
 
 /// The shader's files, in the order they are joined.
 const PARTS: [&str; 11] = [
@@ -46,9 +48,13 @@ fn generated_constants() -> [(&'static str, u32); 11] {
 /// The whole shader.
 pub(super) fn source() -> String {
     let mut source = String::from("// Generated from Rust (gpu/shader.rs): codes shared with the host.\n");
+    // Writing to a String cannot fail.
     for (name, value) in generated_constants() {
-        // Writing to a String cannot fail.
         let _ = writeln!(source, "const {name}: u32 = {value}u;");
+    }
+    // `{:?}` prints the shortest decimal that reads back as the same f32.
+    for (k, value) in SH_NORMALIZATION.iter().enumerate() {
+        let _ = writeln!(source, "const SH_K{k}: f32 = {value:?};");
     }
     source.push('\n');
     PARTS.iter().for_each(|part| source.push_str(part));
@@ -81,5 +87,6 @@ mod tests {
             let definition = format!("const {name}:");
             assert!(PARTS.iter().all(|part| !part.contains(&definition)), "{name} is defined in a shader file");
         }
+        assert!(source().contains("const SH_K0: f32 = 0.282095;"), "{}", &source()[..800]);
     }
 }

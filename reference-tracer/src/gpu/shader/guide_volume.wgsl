@@ -92,18 +92,19 @@ fn volume_sample(leaf: u32, normal: vec3<f32>, u: vec2<f32>) -> GuideSample {
     return s;
 }
 
-// The nine real spherical harmonics of order ≤ 2 at unit `d` (irradiance_sh.rs).
+// The nine real spherical harmonics of order ≤ 2 at unit `d` (irradiance_sh.rs; its
+// SH_NORMALIZATION are the generated SH_K0…SH_K4).
 fn sh_basis(d: vec3<f32>) -> array<f32, 9> {
     return array<f32, 9>(
-        0.282095,
-        0.488603 * d.y,
-        0.488603 * d.z,
-        0.488603 * d.x,
-        1.092548 * d.x * d.y,
-        1.092548 * d.y * d.z,
-        0.315392 * (3.0 * d.z * d.z - 1.0),
-        1.092548 * d.x * d.z,
-        0.546274 * (d.x * d.x - d.y * d.y),
+        SH_K0,
+        SH_K1 * d.y,
+        SH_K1 * d.z,
+        SH_K1 * d.x,
+        SH_K2 * d.x * d.y,
+        SH_K2 * d.y * d.z,
+        SH_K3 * (3.0 * d.z * d.z - 1.0),
+        SH_K2 * d.x * d.z,
+        SH_K4 * (d.x * d.x - d.y * d.y),
     );
 }
 
