@@ -9,7 +9,7 @@ use glam::{Vec2, Vec3};
 use super::sphere_layout::SphereLayout;
 
 /// The normalisation constants of the real SH basis of order ≤ 2, in the order
-/// [`basis`] uses them: Y₀₀; the three l = 1; xy, yz and xz; 3z² − 1; x² − y². A GPU
+/// the basis below uses them: Y₀₀; the three l = 1; xy, yz and xz; 3z² − 1; x² − y². A GPU
 /// tracer evaluating the same basis takes them from here.
 pub const SH_NORMALIZATION: [f32; 5] = [0.282_095, 0.488_603, 1.092_548, 0.315_392, 0.546_274];
 
