@@ -319,7 +319,8 @@ fn vpl_pass<I: Intersector, G: Guide>(
     let (low, high) = scene.bounds();
     let min_distance = settings.vpl_min_distance * (high - low).length();
     let learning = settings.learn && settings.method.uses_guide();
-    let total = std::sync::Mutex::new(vpls.tally());
+    // The tallies exist only where W learns: other passes gather without them.
+    let total = std::sync::Mutex::new(if learning { vpls.tally() } else { Vec::new() });
     let tally = || Tally { local: learning.then(|| vpls.tally()), total: &total };
     let (counters, pass_sum) = pixel_pass(film, pass_seed, tally, |tally, (x, y), rng, counters| {
         let ray = tracer.camera_ray(x, y, rng);

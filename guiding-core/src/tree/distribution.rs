@@ -152,10 +152,11 @@ impl DirectionalDistribution for TreeDistribution<'_> {
             // Above the surface d is the direction and its mirror needs the descent; below
             // it the mirror is, and d (its mirror) has the density drawn.
             let mirror = d - self.normal * (2.0 * c);
-            let (direction, descended) = if c > 0.0 { (d, mirror) } else { (mirror.normalize(), mirror.normalize()) };
+            let folded = if c > 0.0 { d } else { mirror.normalize() };
+            let descended = if c > 0.0 { mirror } else { folded };
             let tree = density / SQUARE_TO_SOLID_ANGLE + self.tree_pdf(descended);
-            let pdf = mix * self.uniform_pdf(direction) + (1.0 - mix) * tree;
-            return DirectionSample { direction, pdf };
+            let pdf = mix * self.uniform_pdf(folded) + (1.0 - mix) * tree;
+            return DirectionSample { direction: folded, pdf };
         }
         let direction = if self.mode == HemisphereMode::Fold && c < MIN_SAMPLED_COS_THETA {
             // Within reach of the horizon: mirrored in the tangent plane, kept just above it.

@@ -13,7 +13,8 @@ use crate::animation::frame_seed;
 use crate::directional_guide::DirectionalGuide;
 use crate::integrator::Method;
 use crate::output::read_image;
-use crate::render::{Budget, RenderSettings};
+use crate::output::Image;
+use crate::render::{Budget, RenderSettings, RenderStatistics};
 
 #[derive(Debug, Args)]
 pub(super) struct RenderArgs {
@@ -109,11 +110,7 @@ pub(super) fn run_render(args: &RenderArgs) -> Result<(), String> {
     check_save_targets(args, &prepared)?;
     let (image, statistics, checkpoints) =
         pool.install(|| render_prepared(&mut prepared, &settings, reference.as_ref(), &[], true))?;
-    write_outputs(&args.out, &image, args.pfm)?;
-    let json = statistics_json(args.integrator, &prepared, &statistics, &image, pool.current_num_threads());
-    let json_path = sibling(&args.out, "json");
-    std::fs::write(&json_path, serde_json::to_string_pretty(&json).unwrap_or_default())
-        .map_err(|e| format!("cannot write {}: {e}", json_path.display()))?;
+    write_image_and_statistics(args, &args.out, &prepared, &statistics, &image, pool.current_num_threads())?;
     if reference.is_some() {
         let rows = crate::report::checkpoint_rows(args.integrator.name(), &checkpoints);
         crate::report::write_csv(&sibling(&args.out, "csv"), &rows)?;
@@ -173,11 +170,7 @@ fn run_animation(args: &RenderArgs) -> Result<(), String> {
         let (image, statistics, _) =
             pool.install(|| render_prepared(&mut prepared, &frame_settings, None, &[], true))?;
         let out = frame_path(&args.out, frame);
-        write_outputs(&out, &image, args.pfm)?;
-        let json = statistics_json(args.integrator, &prepared, &statistics, &image, pool.current_num_threads());
-        let json_path = sibling(&out, "json");
-        std::fs::write(&json_path, serde_json::to_string_pretty(&json).unwrap_or_default())
-            .map_err(|e| format!("cannot write {}: {e}", json_path.display()))?;
+        write_image_and_statistics(args, &out, &prepared, &statistics, &image, pool.current_num_threads())?;
         eprintln!(
             "frame {frame}: {} spp in {:.2} s; wrote {}",
             statistics.passes,
@@ -186,6 +179,22 @@ fn run_animation(args: &RenderArgs) -> Result<(), String> {
         );
     }
     save_guides(args, &prepared)
+}
+
+/// IMAGE.exr (with its .png, and .pfm when asked) and IMAGE.json at `out`.
+fn write_image_and_statistics(
+    args: &RenderArgs,
+    out: &Path,
+    prepared: &Prepared,
+    statistics: &RenderStatistics,
+    image: &Image,
+    threads: usize,
+) -> Result<(), String> {
+    write_outputs(out, image, args.pfm)?;
+    let json = statistics_json(args.integrator, prepared, statistics, image, threads);
+    let json_path = sibling(out, "json");
+    std::fs::write(&json_path, serde_json::to_string_pretty(&json).unwrap_or_default())
+        .map_err(|e| format!("cannot write {}: {e}", json_path.display()))
 }
 
 /// IMAGE-NNNN.ext for frame NNNN of `out` (IMAGE.ext).

@@ -39,30 +39,13 @@ pub struct VirtualPointLights<R> {
     starts: Vec<usize>,
     /// The vertices that are virtual lights.
     lights: Vec<u32>,
-    /// Light subpaths traced for them.
-    paths: u32,
 }
 
 impl<R> VirtualPointLights<R> {
-    /// How many there are.
-    pub fn len(&self) -> usize {
-        self.lights.len()
-    }
-
     /// Per vertex of the subpaths, a tally to add what each virtual light gives the
     /// image into (vpl-guided's learning passes).
     pub fn tally(&self) -> Vec<f32> {
         vec![0.0; self.vertices.len()]
-    }
-
-    /// Whether there are none (a scene without area lights).
-    pub fn is_empty(&self) -> bool {
-        self.lights.is_empty()
-    }
-
-    /// Light subpaths they came from.
-    pub fn paths(&self) -> u32 {
-        self.paths
     }
 }
 
@@ -93,7 +76,7 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
             }
             starts.push(vertices.len());
         }
-        VirtualPointLights { vertices, starts, lights, paths }
+        VirtualPointLights { vertices, starts, lights }
     }
 
     /// Teaches W what the virtual lights gave the image (vpl-guided, learning passes):
