@@ -175,6 +175,21 @@ pub fn quadrant_mean(image: &Image, qx: usize, qy: usize) -> f64 {
     sum / (w * h / 4) as f64
 }
 
+/// The standard error of one render's [`quadrant_mean`], estimated from two independent
+/// renders `a` and `b` of one image: each pixel's variance is half its squared
+/// difference, and the quadrant's pixels are independent.
+pub fn quadrant_standard_error(a: &Image, b: &Image, qx: usize, qy: usize) -> f64 {
+    let (w, h) = (a.width, a.height);
+    let mut sum = 0.0;
+    for y in qy * h / 2..(qy + 1) * h / 2 {
+        for x in qx * w / 2..(qx + 1) * w / 2 {
+            let (p, q) = (a.pixels[y * w + x], b.pixels[y * w + x]);
+            sum += (((p.x + p.y + p.z) - (q.x + q.y + q.z)) as f64).powi(2) / 2.0;
+        }
+    }
+    sum.sqrt() / (w * h / 4) as f64
+}
+
 /// Cornell with one box made of a lace that lets half the light through (a masked
 /// material, opacity 0.5 everywhere), at `width` × `height`.
 pub fn masked_cornell(width: u32, height: u32) -> PathBuf {
