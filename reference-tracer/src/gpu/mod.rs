@@ -64,7 +64,7 @@ use wgpu::util::DeviceExt;
 pub use context::GpuContext;
 use guide_buffers::GuideBuffers;
 pub use guide_buffers::{store_learned, GpuGuide};
-use params::{learning_rate_code, method_code, Params, GUIDE_HEMISPHERE, GUIDE_MIXTURE, GUIDE_VOLUME};
+use params::{method_code, Params, GUIDE_HEMISPHERE, GUIDE_MIXTURE, GUIDE_VOLUME};
 use scene_buffers::SceneBuffers;
 
 use crate::environment::Sky;
@@ -175,54 +175,56 @@ impl GpuTracer {
             rr_depth: settings.rr_depth,
             method: method_code(settings.method),
             light_count: scene.lights.len() as u32,
-            eye: eye.extend(0.0).to_array(),
-            forward: forward.extend(tan_half_fov_y).to_array(),
-            right: right.extend(0.0).to_array(),
-            up: up.extend(0.0).to_array(),
-            environment: environment.extend(environment_choice).to_array(),
-            scene: [
-                1e-5 * (high - low).length().max(f32::MIN_POSITIVE),
-                settings.guide_probability,
-                match guide {
-                    Some(GpuGuide::Hemisphere(grid)) => grid.settings().uniform_mix,
-                    Some(GpuGuide::Volume(volume)) => volume.settings().uniform_mix,
-                    Some(GpuGuide::Mixture(mixture)) => mixture.settings().uniform_mix,
-                    None => 0.0,
-                },
-                0.0,
-            ],
+            eye: eye.to_array(),
+            ray_epsilon: 1e-5 * (high - low).length().max(f32::MIN_POSITIVE),
+            forward: forward.to_array(),
+            tan_half_fov_y,
+            right: right.to_array(),
+            guide_probability: settings.guide_probability,
+            up: up.to_array(),
+            uniform_mix: match guide {
+                Some(GpuGuide::Hemisphere(grid)) => grid.settings().uniform_mix,
+                Some(GpuGuide::Volume(volume)) => volume.settings().uniform_mix,
+                Some(GpuGuide::Mixture(mixture)) => mixture.settings().uniform_mix,
+                None => 0.0,
+            },
+            environment_radiance: environment.to_array(),
+            environment_choice,
+            guide_present: guide.is_some() as u32,
+            guide_learns: (guide.is_some() && settings.learn) as u32,
             ..Default::default()
         };
         let mut params = params;
         if let Some(GpuGuide::Volume(volume)) = guide {
             let s = volume.settings();
-            let (rate, parameter) = learning_rate_code(s.update_rule.learning_rate);
-            params.guide = [1, settings.learn as u32, volume.leaf_count() as u32, volume.patch_count() as u32];
-            params.guide_shape = [s.layout.resolution[0], s.layout.resolution[1], 0, 0];
-            params.guide_rule = [s.q_floor, 0.0, rate, parameter];
+            params.guide_regions = volume.leaf_count() as u32;
+            params.guide_patches = volume.patch_count() as u32;
+            [params.patch_rows, params.patch_columns] = s.layout.resolution;
+            params.q_floor = s.q_floor;
+            params.set_learning_rate(s.update_rule.learning_rate);
             params.set_cell_grid(GUIDE_VOLUME, volume.resolution(), volume.grid_transform());
         }
         if let Some(GpuGuide::Mixture(mixture)) = guide {
             let s = mixture.settings();
-            params.guide = [1, settings.learn as u32, mixture.region_count() as u32, s.lobes as u32];
-            params.guide_shape = [0, 0, s.regions_per_cell() as u32, 0];
+            params.guide_regions = mixture.region_count() as u32;
+            params.guide_patches = s.lobes as u32;
+            params.regions_per_cell = s.regions_per_cell() as u32;
             params.set_cell_grid(GUIDE_MIXTURE, mixture.resolution(), mixture.grid_transform());
         }
         if let Some(GpuGuide::Hemisphere(grid)) = guide {
             let s = grid.settings();
             let lookup = grid.lookup();
-            let (rate, parameter) = learning_rate_code(s.update_rule.learning_rate);
-            params.volume_grid[3] = GUIDE_HEMISPHERE;
-            params.guide = [1, settings.learn as u32, grid.probe_count() as u32, grid.patch_count() as u32];
-            params.guide_shape = [
-                s.layout.resolution[0],
-                s.layout.resolution[1],
-                (lookup.bucket_starts().len() - 1) as u32,
-                lookup.max_rings(),
-            ];
-            params.guide_lookup = lookup.origin().extend(lookup.cell_size()).to_array();
-            let cos_max = s.max_normal_angle_deg.to_radians().cos();
-            params.guide_rule = [s.q_floor, cos_max, rate, parameter];
+            params.guide_kind = GUIDE_HEMISPHERE;
+            params.guide_regions = grid.probe_count() as u32;
+            params.guide_patches = grid.patch_count() as u32;
+            [params.patch_rows, params.patch_columns] = s.layout.resolution;
+            params.lookup_buckets = (lookup.bucket_starts().len() - 1) as u32;
+            params.search_rings = lookup.max_rings();
+            params.lookup_origin = lookup.origin().to_array();
+            params.lookup_cell_size = lookup.cell_size();
+            params.q_floor = s.q_floor;
+            params.max_normal_cos = s.max_normal_angle_deg.to_radians().cos();
+            params.set_learning_rate(s.update_rule.learning_rate);
         }
         let params_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("params"),
@@ -302,7 +304,7 @@ impl GpuTracer {
         let bind_group = group(&pipeline, &(0..19).collect::<Vec<u32>>(), "trace");
         let rebuild_group = group(&rebuild, &[0, 13, 15, 16, 17, 18, 19], "rebuild");
         context.check_errors()?;
-        let guide_size = (params.guide[2], params.guide[3]);
+        let guide_size = (params.guide_regions, params.guide_patches);
         let volume = match guide {
             Some(GpuGuide::Volume(volume)) => Some(volume.clone()),
             _ => None,
@@ -353,7 +355,7 @@ impl GpuTracer {
             pass.set_pipeline(&self.pipeline);
             pass.set_bind_group(0, &self.bind_group, &[]);
             pass.dispatch_workgroups(self.width.div_ceil(8), self.height.div_ceil(8), 1);
-            if self.params.guide[1] != 0 && self.mixture.is_none() {
+            if self.params.guide_learns != 0 && self.mixture.is_none() {
                 // Between passes: the CDFs of the probes or leaves that learned.
                 pass.set_pipeline(&self.rebuild);
                 pass.set_bind_group(0, &self.rebuild_group, &[]);
@@ -362,7 +364,7 @@ impl GpuTracer {
         }
         encoder.copy_buffer_to_buffer(&self.image, 0, &self.image_readback, 0, self.image.size());
         encoder.copy_buffer_to_buffer(&self.counters, 0, &self.counters_readback, 0, 16);
-        let learning = self.params.guide[1] != 0;
+        let learning = self.params.guide_learns != 0;
         let splitting = self.volume.is_some() && learning;
         let fitting = self.mixture.is_some() && learning;
         if splitting || fitting {
@@ -416,7 +418,7 @@ impl GpuTracer {
                 }
             }
             statistics.add_pass(sum, width * height, counters);
-            let learns = settings.integrator.method.uses_guide() && self.params.guide[1] != 0;
+            let learns = settings.integrator.method.uses_guide() && self.params.guide_learns != 0;
             let fate = if learns && start.elapsed().as_secs_f64() < settings.train_seconds {
                 PassFate::Discard
             } else {
@@ -449,7 +451,7 @@ impl GpuTracer {
         guide_buffers::store_volume_tables(volume, &q[..entries], &patch_visits[..entries], &leaf_visits[..leaves]);
         volume.rebuild_sampling();
         self.guide.write_volume(&self.context.queue, volume);
-        self.params.guide[2] = volume.leaf_count() as u32;
+        self.params.guide_regions = volume.leaf_count() as u32;
         self.guide_size.0 = volume.leaf_count() as u32;
         Ok(())
     }

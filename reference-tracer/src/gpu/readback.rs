@@ -92,7 +92,7 @@ impl GpuTracer {
         });
         self.params.pass_index = region;
         self.params.seed = seed;
-        self.params.sample_normal = normal.extend(0.0).to_array();
+        self.params.sample_normal = normal.to_array();
         self.context.queue.write_buffer(&self.params_buffer, 0, bytemuck::bytes_of(&self.params));
         let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("sample") });
         {

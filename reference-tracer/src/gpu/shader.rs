@@ -2,13 +2,16 @@
 //! modules are split (header: bindings and structs; rng; intersect; sampling; bsdf;
 //! lights; one file per guide structure and the dispatch between them; trace: the
 //! path, learning and the entry points), concatenated in order, after the constants
-//! that carry Rust's codes (methods, material kinds, guide structures) and guiding-core's
-//! spherical-harmonic normalisation, generated here from the Rust values themselves so
-//! the two sides cannot drift.
+//! that carry Rust's codes (methods, material kinds, guide structures, learning rates),
+//! guiding-core's spherical-harmonic normalisation and the uniform block `Params`, all
+//! generated here from the Rust values and types themselves so the two sides cannot drift.
 
 use std::fmt::Write;
 
-use super::params::{method_code, GUIDE_HEMISPHERE, GUIDE_MIXTURE, GUIDE_VOLUME};
+use super::params::{
+    method_code, Params, GUIDE_HEMISPHERE, GUIDE_MIXTURE, GUIDE_VOLUME, LEARNING_RATE_ENTRY_VISITS,
+    LEARNING_RATE_EXPONENTIAL, LEARNING_RATE_REGION_VISITS,
+};
 use super::scene_buffers::{MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC, MATERIAL_DIFFUSE, MATERIAL_THIN_DIELECTRIC};
 use crate::integrator::Method;
 use guiding_core::volume::SH_NORMALIZATION;
@@ -29,7 +32,7 @@ const PARTS: [&str; 11] = [
 ];
 
 /// The WGSL constants that must equal Rust's codes, by name.
-fn generated_constants() -> [(&'static str, u32); 11] {
+fn generated_constants() -> [(&'static str, u32); 14] {
     [
         ("METHOD_PT", method_code(Method::Pt)),
         ("METHOD_NEE", method_code(Method::Nee)),
@@ -42,6 +45,9 @@ fn generated_constants() -> [(&'static str, u32); 11] {
         ("GUIDE_HEMISPHERE", GUIDE_HEMISPHERE),
         ("GUIDE_VOLUME", GUIDE_VOLUME),
         ("GUIDE_MIXTURE", GUIDE_MIXTURE),
+        ("LEARNING_RATE_EXPONENTIAL", LEARNING_RATE_EXPONENTIAL),
+        ("LEARNING_RATE_ENTRY_VISITS", LEARNING_RATE_ENTRY_VISITS),
+        ("LEARNING_RATE_REGION_VISITS", LEARNING_RATE_REGION_VISITS),
     ]
 }
 
@@ -56,6 +62,8 @@ pub(super) fn source() -> String {
     for (k, value) in SH_NORMALIZATION.iter().enumerate() {
         let _ = writeln!(source, "const SH_K{k}: f32 = {value:?};");
     }
+    source.push('\n');
+    source.push_str(Params::WGSL);
     source.push('\n');
     PARTS.iter().for_each(|part| source.push_str(part));
     source
@@ -88,5 +96,25 @@ mod tests {
             assert!(PARTS.iter().all(|part| !part.contains(&definition)), "{name} is defined in a shader file");
         }
         assert!(source().contains("const SH_K0: f32 = 0.282095;"), "{}", &source()[..800]);
+        assert!(PARTS.iter().all(|part| !part.contains("struct Params")), "Params is declared in a shader file");
+    }
+
+    /// Every field of the generated `Params` sits at the offset WGSL's uniform layout
+    /// gives it, and the block has the size the shader expects: the bytes the host
+    /// uploads are read field by field as written.
+    #[test]
+    fn params_layout_matches_wgsl() {
+        use wgpu::naga;
+        let source = source();
+        let module = naga::front::wgsl::parse_str(&source).unwrap_or_else(|e| panic!("{}", e.emit_to_string(&source)));
+        let mut layouter = naga::proc::Layouter::default();
+        layouter.update(module.to_ctx()).unwrap();
+        let (handle, ty) = module.types.iter().find(|(_, ty)| ty.name.as_deref() == Some("Params")).unwrap();
+        let naga::TypeInner::Struct { members, span } = &ty.inner else { panic!("Params is not a struct") };
+        let wgsl: Vec<(&str, usize)> =
+            members.iter().map(|m| (m.name.as_deref().unwrap_or(""), m.offset as usize)).collect();
+        assert_eq!(wgsl, Params::OFFSETS);
+        assert_eq!(*span as usize, std::mem::size_of::<Params>());
+        assert_eq!(layouter[handle].size as usize, std::mem::size_of::<Params>());
     }
 }

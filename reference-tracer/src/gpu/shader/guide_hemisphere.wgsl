@@ -18,13 +18,13 @@ fn floor_i32(x: f32) -> i32 {
 }
 
 fn cell_of(p: vec3<f32>) -> vec3<i32> {
-    let c = (p - params.guide_lookup.xyz) / params.guide_lookup.w;
+    let c = (p - params.lookup_origin) / params.lookup_cell_size;
     return clamp(vec3<i32>(floor_i32(c.x), floor_i32(c.y), floor_i32(c.z)), vec3<i32>(-MAX_CELL), vec3<i32>(MAX_CELL));
 }
 
 fn bucket(cell: vec3<i32>) -> u32 {
     let hash = (u32(cell.x) * 73856093u) ^ (u32(cell.y) * 19349663u) ^ (u32(cell.z) * 83492791u);
-    return hash & (params.guide_shape.z - 1u);
+    return hash & (params.lookup_buckets - 1u);
 }
 
 struct Nearest {
@@ -38,7 +38,7 @@ fn visit_cell(cell: vec3<i32>, query: vec3<f32>, normal: vec3<f32>, best: Neares
     for (var p = index_table[b]; p < index_table[b + 1u]; p += 1u) {
         let d = probe_position(p) - query;
         let d2 = dot(d, d);
-        if ((result.probe == NO_PROBE || d2 < result.distance2) && dot(probe_normal(p), normal) >= params.guide_rule.y) {
+        if ((result.probe == NO_PROBE || d2 < result.distance2) && dot(probe_normal(p), normal) >= params.max_normal_cos) {
             result.probe = p;
             result.distance2 = d2;
         }
@@ -52,8 +52,8 @@ fn locate(query: vec3<f32>, normal: vec3<f32>) -> u32 {
     var best: Nearest;
     best.probe = NO_PROBE;
     best.distance2 = INFINITY;
-    let cell_size = params.guide_lookup.w;
-    let scaled = (query - params.guide_lookup.xyz) / cell_size;
+    let cell_size = params.lookup_cell_size;
+    let scaled = (query - params.lookup_origin) / cell_size;
     let center = cell_of(query);
     let fraction = clamp(scaled - vec3<f32>(center), vec3<f32>(0.0), vec3<f32>(1.0));
     best = visit_cell(center, query, normal, best);
@@ -71,7 +71,7 @@ fn locate(query: vec3<f32>, normal: vec3<f32>) -> u32 {
         let half = 0.5 * cell_size;
         if (best.distance2 <= half * half) { return best.probe; }
     }
-    for (var ring = 1; ring <= i32(params.guide_shape.w); ring += 1) {
+    for (var ring = 1; ring <= i32(params.search_rings); ring += 1) {
         for (var dz = -ring; dz <= ring; dz += 1) {
             for (var dy = -ring; dy <= ring; dy += 1) {
                 for (var dx = -ring; dx <= ring; dx += 1) {
@@ -90,24 +90,24 @@ fn locate(query: vec3<f32>, normal: vec3<f32>) -> u32 {
 }
 
 fn patch_solid_angle() -> f32 {
-    return 2.0 * PI / f32(params.guide.w);
+    return 2.0 * PI / f32(params.guide_patches);
 }
 
 // PatchLayout::patch_of for the cylindrical mapping; N (none) below the horizon.
 fn patch_of(local: vec3<f32>) -> u32 {
-    if (!(local.z >= 0.0)) { return params.guide.w; }
+    if (!(local.z >= 0.0)) { return params.guide_patches; }
     var phi = atan2(local.y, local.x);
     if (phi < 0.0) { phi += 2.0 * PI; }
-    let rows = params.guide_shape.x;
-    let columns = params.guide_shape.y;
+    let rows = params.patch_rows;
+    let columns = params.patch_columns;
     let iu = min(u32(clamp(local.z, 0.0, 1.0) * f32(rows)), rows - 1u);
     let iv = min(u32(phi * (0.5 / PI) * f32(columns)), columns - 1u);
     return iu * columns + iv;
 }
 
 fn direction_in_patch(entry: u32, xi: vec2<f32>) -> vec3<f32> {
-    let rows = params.guide_shape.x;
-    let columns = params.guide_shape.y;
+    let rows = params.patch_rows;
+    let columns = params.patch_columns;
     let uv = vec2<f32>((f32(entry / columns) + xi.x) / f32(rows), (f32(entry % columns) + xi.y) / f32(columns));
     let d = spherical_direction(clamp(uv.x, 0.0, 1.0), 2.0 * PI * uv.y);
     if (d.z >= MIN_SAMPLED_COS) { return d; }
@@ -117,7 +117,7 @@ fn direction_in_patch(entry: u32, xi: vec2<f32>) -> vec3<f32> {
 }
 
 fn patch_probability(region: u32, entry: u32) -> f32 {
-    let base = region * params.guide.w;
+    let base = region * params.guide_patches;
     let low = select(0.0, cdf[base + entry - 1u], entry > 0u);
     return cdf[base + entry] - low;
 }
@@ -129,7 +129,7 @@ struct CdfSample {
 
 // sample_cdf over region `region`'s patches: the patch, and `u` rescaled inside it.
 fn invert_cdf(region: u32, u: f32) -> CdfSample {
-    let n = params.guide.w;
+    let n = params.guide_patches;
     let base = region * n;
     var low = 0u;
     var high = n;
@@ -153,7 +153,7 @@ struct GuideSample {
 
 fn grid_pdf(probe: u32, wi: vec3<f32>) -> f32 {
     let entry = patch_of(to_local(frame_from_normal(probe_normal(probe)), wi));
-    if (entry >= params.guide.w) { return 0.0; }
+    if (entry >= params.guide_patches) { return 0.0; }
     return patch_probability(probe, entry) / patch_solid_angle();
 }
 

@@ -22,17 +22,17 @@ fn mixture_region(p: vec3<f32>, normal: vec3<f32>) -> u32 {
     if (!all(abs(p) < vec3<f32>(INFINITY))) { return NO_PROBE; }
     let cell = grid_cell(p).index;
     var side = 0u;
-    if (params.guide_shape.z == 6u) {
+    if (params.regions_per_cell == 6u) {
         let a = abs(normal);
         var axis = 2u;
         if (a.x >= a.y && a.x >= a.z) { axis = 0u; } else if (a.y >= a.z) { axis = 1u; }
         side = 2u * axis + select(0u, 1u, normal[axis] < 0.0);
     }
-    return cell * params.guide_shape.z + side;
+    return cell * params.regions_per_cell + side;
 }
 
 fn lobe_word(region: u32, k: u32, i: u32) -> f32 {
-    return cdf[(region * params.guide.w + k) * LOBE_WORDS + i];
+    return cdf[(region * params.guide_patches + k) * LOBE_WORDS + i];
 }
 
 fn lobe_mean(region: u32, k: u32) -> vec3<f32> {
@@ -50,8 +50,8 @@ fn lobe_pdf(region: u32, k: u32, d: vec3<f32>) -> f32 {
 // MixtureDistribution::sphere_pdf: the mixture with uniform_mix spread over the sphere.
 fn mixture_sphere_pdf(region: u32, d: vec3<f32>) -> f32 {
     var sum = 0.0;
-    for (var k = 0u; k < params.guide.w; k += 1u) { sum += lobe_word(region, k, 5u) * lobe_pdf(region, k, d); }
-    return (1.0 - params.scene.z) * sum + params.scene.z * (0.25 / PI);
+    for (var k = 0u; k < params.guide_patches; k += 1u) { sum += lobe_word(region, k, 5u) * lobe_pdf(region, k, d); }
+    return (1.0 - params.uniform_mix) * sum + params.uniform_mix * (0.25 / PI);
 }
 
 // MixtureDistribution::pdf: folded onto the normal's hemisphere, as the volume's.
@@ -70,13 +70,13 @@ fn lobe_sample(region: u32, k: u32, u: vec2<f32>) -> vec3<f32> {
 }
 
 fn mixture_sample(region: u32, normal: vec3<f32>, u: vec2<f32>) -> GuideSample {
-    let mix = params.scene.z;
+    let mix = params.uniform_mix;
     var d = vec3<f32>(0.0);
     if (u.x < mix) {
         d = spherical_direction(1.0 - 2.0 * (u.x / mix), 2.0 * PI * u.y);
     } else {
         let x = min((u.x - mix) / (1.0 - mix), 0.99999994);
-        let lobes = params.guide.w;
+        let lobes = params.guide_patches;
         var chosen = lobes - 1u;
         var low = 0.0;
         var cumulative = 0.0;
@@ -118,7 +118,7 @@ fn add_to_batch(index: u32, value: f32) {
 fn mixture_update(region: u32, d: vec3<f32>, goal: f32, pdf: f32) {
     if (!(abs(dot(d, d) - 1.0) < 1e-3 && pdf > 0.0 && pdf < INFINITY)) { return; }
     let weight = min(goal / pdf, 1e30);
-    let lobes = params.guide.w;
+    let lobes = params.guide_patches;
     let stride = 1u + 4u * lobes;
     let base = region * stride;
     var total = 0.0;
@@ -150,7 +150,7 @@ fn mixture_integral(region: u32, m: Material, shading: Shading, wo_local: vec3<f
     let scale = lobe_word(region, 0u, 6u);
     if (!(scale > 0.0)) { return 0.0; }
     var sum = 0.0;
-    for (var k = 0u; k < params.guide.w; k += 1u) {
+    for (var k = 0u; k < params.guide_patches; k += 1u) {
         let wi = lobe_sample(region, k, u);
         sum += lobe_word(region, k, 5u) * luminance(bsdf_eval(m, wo_local, to_local(shading.frame, wi)));
     }

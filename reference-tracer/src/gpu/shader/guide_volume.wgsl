@@ -15,9 +15,9 @@ struct GridCell {
 }
 
 fn grid_cell(p: vec3<f32>) -> GridCell {
-    let resolution = vec3<i32>(params.volume_grid.xyz);
+    let resolution = vec3<i32>(params.grid_cells);
     var g: GridCell;
-    g.scaled = max((p - params.volume_low.xyz) * params.volume_scale.xyz, vec3<f32>(0.0));
+    g.scaled = max((p - params.grid_low) * params.grid_cells_per_unit, vec3<f32>(0.0));
     g.cell = min(vec3<i32>(g.scaled), resolution - vec3<i32>(1));
     g.index = u32((g.cell.z * resolution.y + g.cell.y) * resolution.x + g.cell.x);
     return g;
@@ -43,8 +43,8 @@ fn volume_leaf(p: vec3<f32>) -> u32 {
 // SphereLayout::patch_of: bands of z, sectors of φ about the world z axis.
 fn sphere_patch_of(direction: vec3<f32>) -> u32 {
     let d = normalize(direction);
-    let bands = params.guide_shape.x;
-    let sectors = params.guide_shape.y;
+    let bands = params.patch_rows;
+    let sectors = params.patch_columns;
     let band = min(u32((d.z + 1.0) * 0.5 * f32(bands)), bands - 1u);
     var phi = atan2(d.y, d.x);
     if (phi < 0.0) { phi += 2.0 * PI; }
@@ -54,8 +54,8 @@ fn sphere_patch_of(direction: vec3<f32>) -> u32 {
 
 // SphereLayout::direction_in_patch: uniform in solid angle inside the patch.
 fn sphere_direction_in_patch(entry: u32, u: vec2<f32>) -> vec3<f32> {
-    let bands = params.guide_shape.x;
-    let sectors = params.guide_shape.y;
+    let bands = params.patch_rows;
+    let sectors = params.patch_columns;
     let z = clamp(-1.0 + 2.0 * (f32(entry / sectors) + u.x) / f32(bands), -1.0, 1.0);
     return spherical_direction(z, 2.0 * PI * (f32(entry % sectors) + u.y) / f32(sectors));
 }
@@ -74,7 +74,7 @@ fn fold_onto_hemisphere(direction: vec3<f32>, normal: vec3<f32>) -> vec3<f32> {
 }
 
 fn sphere_pdf(leaf: u32, d: vec3<f32>) -> f32 {
-    return patch_probability(leaf, sphere_patch_of(d)) * f32(params.guide.w) / (4.0 * PI);
+    return patch_probability(leaf, sphere_patch_of(d)) * f32(params.guide_patches) / (4.0 * PI);
 }
 
 // VolumeDistribution::pdf: p(ω) + p(mirror ω) above the surface, 0 below.

@@ -10,30 +10,7 @@ const NO_LIGHT: u32 = 0xffffffffu;
 const STACK_SIZE: u32 = 64u;
 const MAX_VERTICES: u32 = 64u;
 
-struct Params {
-    width: u32,
-    height: u32,
-    pass_index: u32,
-    seed: u32,
-    max_depth: u32,
-    rr_depth: u32,
-    method: u32,
-    light_count: u32,
-    eye: vec4<f32>,
-    forward: vec4<f32>,   // w: tan(fov_y / 2)
-    right: vec4<f32>,
-    up: vec4<f32>,
-    environment: vec4<f32>, // rgb radiance; w: probability that NEE picks the environment
-    scene: vec4<f32>,       // x: ray epsilon (scene-relative), y: guide probability
-    guide: vec4<u32>,       // x: guide present, y: learn, z: regions (probes or leaves), w: patches
-    guide_shape: vec4<u32>, // x: patch rows (cos θ bands), y: patch columns (φ sectors), z: buckets, w: search rings
-    guide_lookup: vec4<f32>, // xyz: hash grid origin, w: cell size
-    guide_rule: vec4<f32>,  // x: floor, y: cos of the largest normal angle, z: learning rate kind, w: its parameter
-    volume_grid: vec4<u32>, // xyz: the volume's or mixture's grid cells per axis, w: guide kind (GUIDE_*)
-    volume_low: vec4<f32>,  // xyz: the grid's low corner
-    volume_scale: vec4<f32>, // xyz: the grid's cells per unit length
-    sample_normal: vec4<f32>, // xyz: the normal `sample_guide` samples a volume leaf about
-};
+// The uniform block (Params) is generated from Rust (gpu/params.rs) ahead of these files.
 
 struct Node {
     min: vec3<f32>,

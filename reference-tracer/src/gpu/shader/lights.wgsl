@@ -20,12 +20,12 @@ fn light_pdf(light: u32, origin: vec3<f32>, point: vec3<f32>, normal: vec3<f32>)
     let cos_light = -dot(normal, to_light) / sqrt(distance2);
     if (cos_light <= 0.0) { return 0.0; }
     let l = lights[light];
-    return (1.0 - params.environment.w) * l.emission.w * distance2 / (cos_light * l.v2.w);
+    return (1.0 - params.environment_choice) * l.emission.w * distance2 / (cos_light * l.v2.w);
 }
 
 fn epsilon_at(point: vec3<f32>) -> f32 {
     let a = abs(point);
-    return params.scene.x + 1e-6 * max(max(a.x, a.y), a.z);
+    return params.ray_epsilon + 1e-6 * max(max(a.x, a.y), a.z);
 }
 
 fn spawn(point: vec3<f32>, normal: vec3<f32>, direction: vec3<f32>) -> vec3<f32> {

@@ -34,16 +34,16 @@ fn trace(@builtin(global_invocation_id) id: vec3<u32>) {
     let width = f32(params.width);
     let height = f32(params.height);
     let aspect = width / height;
-    let tan_half = params.forward.w;
+    let tan_half = params.tan_half_fov_y;
     let ndc_x = (2.0 * (f32(id.x) + jitter.x) / width - 1.0) * aspect * tan_half;
     let ndc_y = (1.0 - 2.0 * (f32(id.y) + jitter.y) / height) * tan_half;
-    var origin = params.eye.xyz;
-    var direction = normalize(params.forward.xyz + params.right.xyz * ndc_x + params.up.xyz * ndc_y);
+    var origin = params.eye;
+    var direction = normalize(params.forward + params.right * ndc_x + params.up * ndc_y);
 
     let uses_nee = params.method == METHOD_NEE || params.method == METHOD_GUIDED_NEE;
-    let guided = (params.method == METHOD_GUIDED || params.method == METHOD_GUIDED_NEE) && params.guide.x != 0u;
-    let learning = guided && params.guide.y != 0u;
-    let p_guide = params.scene.y;
+    let guided = (params.method == METHOD_GUIDED || params.method == METHOD_GUIDED_NEE) && params.guide_present != 0u;
+    let learning = guided && params.guide_learns != 0u;
+    let p_guide = params.guide_probability;
     var radiance = vec3<f32>(0.0);
     var throughput = vec3<f32>(1.0);
     var previous_point = vec3<f32>(0.0);
@@ -56,14 +56,14 @@ fn trace(@builtin(global_invocation_id) id: vec3<u32>) {
         rays += 1u;
         let hit = intersect(origin, direction, 0.0, INFINITY);
         if (hit.primitive == NO_LIGHT) {
-            if (params.environment.w > 0.0) {
+            if (params.environment_choice > 0.0) {
                 // A constant environment's pdf is uniform over the sphere.
                 var weight = 1.0;
                 if (uses_nee && !previous_delta && depth > 0u) {
-                    weight = power_heuristic(previous_pdf, params.environment.w / (4.0 * PI));
+                    weight = power_heuristic(previous_pdf, params.environment_choice / (4.0 * PI));
                 }
-                radiance += throughput * params.environment.xyz * weight;
-                add_arriving(count, weight * luminance(params.environment.xyz));
+                radiance += throughput * params.environment_radiance * weight;
+                add_arriving(count, weight * luminance(params.environment_radiance));
             }
             break;
         }
@@ -105,12 +105,12 @@ fn trace(@builtin(global_invocation_id) id: vec3<u32>) {
             var emitted = vec3<f32>(0.0);
             var pdf = 0.0;
             var distance = INFINITY;
-            if (u_choice < params.environment.w) {
+            if (u_choice < params.environment_choice) {
                 let z = 1.0 - 2.0 * u.x;
                 let r = sqrt(max(1.0 - z * z, 0.0));
                 wi = vec3<f32>(r * cos(2.0 * PI * u.y), r * sin(2.0 * PI * u.y), z);
-                emitted = params.environment.xyz;
-                pdf = params.environment.w / (4.0 * PI);
+                emitted = params.environment_radiance;
+                pdf = params.environment_choice / (4.0 * PI);
             } else if (params.light_count > 0u) {
                 let light = sample_light_cdf(u_select);
                 let l = lights[light];
@@ -126,7 +126,7 @@ fn trace(@builtin(global_invocation_id) id: vec3<u32>) {
                 let cos_light = -dot(light_normal, wi);
                 if (cos_light > 0.0 && distance > 0.0) {
                     emitted = l.emission.xyz;
-                    pdf = (1.0 - params.environment.w) * l.emission.w * distance2 / (cos_light * l.v2.w);
+                    pdf = (1.0 - params.environment_choice) * l.emission.w * distance2 / (cos_light * l.v2.w);
                 }
             }
             let wi_local = to_local(shading.frame, wi);
