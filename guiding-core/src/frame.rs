@@ -20,7 +20,7 @@ pub struct Frame {
 impl Frame {
     /// The frame whose local +z is `normal`, which must be unit length.
     pub fn from_normal(normal: Vec3) -> Self {
-        let sign = libm::copysignf(1.0, normal.z);
+        let sign = 1.0f32.copysign(normal.z);
         let a = -1.0 / (sign + normal.z);
         let b = normal.x * normal.y * a;
         let tangent = Vec3::new(1.0 + sign * normal.x * normal.x * a, sign * b, -sign * normal.x);

@@ -5,6 +5,8 @@
 extern crate alloc;
 
 // Shared by every guide structure; a build with none of them compiled in leaves them unused.
+#[cfg(any(feature = "hemisphere", feature = "volume", feature = "tree"))]
+mod atan2;
 #[cfg_attr(
     not(any(
         feature = "hemisphere",

@@ -5,6 +5,7 @@ use core::f32::consts::PI;
 
 use glam::{Vec2, Vec3};
 
+use crate::atan2::fast_atan2;
 use crate::error::{require, Error};
 
 /// Patches of equal solid angle 4π/(nz·nφ): `resolution[0]` bands of z = cos θ about the
@@ -56,7 +57,7 @@ impl SphereLayout {
         let d = direction.try_normalize()?;
         let [nz, nphi] = self.resolution;
         let band = (((d.z + 1.0) * 0.5 * nz as f32) as u32).min(nz - 1);
-        let mut phi = libm::atan2f(d.y, d.x);
+        let mut phi = fast_atan2(d.y, d.x);
         if phi < 0.0 {
             phi += 2.0 * PI;
         }
