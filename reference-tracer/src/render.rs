@@ -131,6 +131,48 @@ pub struct Learners<'a, G: Guide = HemisphereGrid> {
     pub environment: Option<&'a mut EnvTileGuide>,
 }
 
+impl<G: Guide> Learners<'_, G> {
+    /// The learners `integrator` uses, every other one dropped: the one place that
+    /// decides which learner a method uses, so that the render and the tracer take what
+    /// they are given.
+    /// - the directional guide and the focal guide (if its probability is above 0): guided
+    ///   methods;
+    /// - the learned shares: where the directional guide is and `learned_guide_share` is set;
+    /// - W: where the directional guide is, for bdpt-guided's light subpaths (if
+    ///   `guide_light_subpaths`) and vpl-guided's;
+    /// - learned light selection, the next-event gate and the environment tiles: methods
+    ///   that select lights as learned, estimate next-event light, and sample the
+    ///   environment by tiles.
+    pub fn used_by(self, integrator: &IntegratorSettings) -> Self {
+        let method = integrator.method;
+        let guided = method.uses_guide();
+        let directions = self.directions.filter(|_| guided);
+        let guides_light_paths =
+            (method.bidirectional() && integrator.guide_light_subpaths) || method.gathers_virtual_lights();
+        let with_directions = directions.is_some();
+        Self {
+            importance: self.importance.filter(|_| with_directions && guides_light_paths),
+            focal: self.focal.filter(|_| guided && integrator.focal_probability > 0.0),
+            guide_shares: self.guide_shares.filter(|_| with_directions && integrator.learned_guide_share),
+            lights: self.lights.filter(|_| integrator.light_selection == LightSelection::Learned),
+            gate: self.gate.filter(|_| method.uses_nee()),
+            environment: self.environment.filter(|_| integrator.environment_sampling == EnvironmentSampling::Tiles),
+            directions,
+        }
+    }
+
+    /// Whether any learner is there to learn.
+    fn any(&self) -> bool {
+        self.directions.is_some()
+            || self.importance.is_some()
+            || self.focal.is_some()
+            || self.guide_shares.is_some()
+            || self.lights.is_some()
+            || self.gate.is_some()
+            || self.environment.is_some()
+    }
+}
+
 impl<G: Guide> Default for Learners<'_, G> {
     fn default() -> Self {
         Self {
@@ -145,8 +187,9 @@ impl<G: Guide> Default for Learners<'_, G> {
     }
 }
 
-/// Renders `scene` progressively on the current rayon pool with `learners` (learned
-/// during every pass); `on_pass` sees the state after every pass.
+/// Renders `scene` progressively on the current rayon pool with the `learners` the
+/// method uses ([`Learners::used_by`]; learned during every learning pass); `on_pass`
+/// sees the state after every pass.
 pub fn render<I: Intersector, G: Guide>(
     scene: &Scene,
     intersector: &I,
@@ -154,6 +197,8 @@ pub fn render<I: Intersector, G: Guide>(
     settings: &RenderSettings,
     mut on_pass: impl FnMut(&Progress<'_>),
 ) -> (Image, RenderStatistics) {
+    let learners = learners.used_by(&settings.integrator);
+    let learns = learners.any();
     let Learners {
         directions: mut guide,
         mut importance,
@@ -167,7 +212,7 @@ pub fn render<I: Intersector, G: Guide>(
     let mut film = Film::new(width, height, settings.combine);
     let mut statistics = RenderStatistics::default();
     let start = Instant::now();
-    let guided = settings.integrator.method.uses_guide() && (guide.is_some() || focal.is_some());
+    let guided = guide.is_some() || focal.is_some();
     let mut training = Training::new(guided && settings.schedule == Schedule::Iterative, settings.training_share);
     // Passes traced so far, kept or not: each gets its own seed.
     let mut traced = 0u32;
@@ -212,7 +257,7 @@ pub fn render<I: Intersector, G: Guide>(
             None => true,
             Some(step) => matches!(step, Step::Refit { .. }),
         };
-        if settings.integrator.method.uses_guide() && refits {
+        if refits {
             if let Some(guide) = guide.as_deref_mut() {
                 guide.rebuild_sampling();
             }
@@ -243,9 +288,7 @@ pub fn render<I: Intersector, G: Guide>(
             }
         }
         if let Some(light_guide) = light_guide.as_deref_mut() {
-            if settings.integrator.light_selection == LightSelection::Learned {
-                light_guide.rebuild();
-            }
+            light_guide.rebuild();
         }
         if let Some(gate) = gate.as_deref_mut() {
             // The gate counts only in learning passes: nothing to refit after others.
@@ -253,16 +296,10 @@ pub fn render<I: Intersector, G: Guide>(
                 gate.rebuild();
             }
         }
-        let learns_environment = settings.integrator.environment_sampling == EnvironmentSampling::Tiles;
-        if learns_environment {
-            if let Some(environment_guide) = environment_guide.as_deref_mut() {
-                environment_guide.rebuild();
-            }
+        if let Some(environment_guide) = environment_guide.as_deref_mut() {
+            environment_guide.rebuild();
         }
         statistics.guide_rebuild_seconds += rebuild.elapsed().as_secs_f64();
-        let learns = settings.integrator.method.uses_guide()
-            || settings.integrator.light_selection == LightSelection::Learned
-            || learns_environment;
         let seconds = start.elapsed().as_secs_f64();
         let keeps_training = settings.combine != Combine::Final;
         let fate = match step {
@@ -318,7 +355,7 @@ fn vpl_pass<I: Intersector, G: Guide>(
     let vpls = tracer.virtual_point_lights(settings.vpl_paths, &mut light_rng, &mut light_counters);
     let (low, high) = scene.bounds();
     let min_distance = settings.vpl_min_distance * (high - low).length();
-    let learning = settings.learn && settings.method.uses_guide();
+    let learning = settings.learn && tracer.importance_guide().is_some();
     // The tallies exist only where W learns: other passes gather without them.
     let total = std::sync::Mutex::new(if learning { vpls.tally() } else { Vec::new() });
     let tally = || Tally { local: learning.then(|| vpls.tally()), total: &total };

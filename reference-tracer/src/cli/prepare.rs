@@ -224,7 +224,6 @@ impl Prepared {
             let focal = FocalGuide::new(low, high, self.focal_settings).map_err(|e| e.to_string())?;
             self.focal_guide = Some(focal);
         }
-        let focal = self.focal_guide.as_mut().filter(|_| guided && settings.integrator.focal_probability > 0.0);
         let learns_share = guided && settings.integrator.learned_guide_share && self.guide.is_some();
         if learns_share && self.guide_shares.is_none() {
             let (low, high) = self.scene.bounds();
@@ -232,10 +231,6 @@ impl Prepared {
             let shares = StrategyShares::new(low, high, resolution).and_then(|s| s.with_cost(cost));
             self.guide_shares = Some(shares.map_err(|e| format!("--guide-share-cost: {e}"))?);
         }
-        let guide_shares = self.guide_shares.as_mut().filter(|_| learns_share);
-        let lights = self.light_guide.as_mut();
-        let gate = self.gate.as_mut();
-        let environment = self.environment_guide.as_mut();
         // W guides the light subpaths of bdpt-guided and vpl-guided.
         let bidirectional_guided = guided
             && ((method.bidirectional() && settings.integrator.guide_light_subpaths)
@@ -245,15 +240,19 @@ impl Prepared {
                 self.importance_guide = Some(DirectionalGuide::build(&self.scene, guide_settings)?);
             }
         }
-        let importance = self.importance_guide.as_mut().filter(|_| bidirectional_guided);
-        let job = RenderJob {
-            scene: &self.scene,
-            intersector: &self.intersector,
-            learners: Learners { focal, guide_shares, lights, gate, environment, ..Learners::default() },
-            settings,
-            on_pass,
+        // Every learner built goes to the render, which keeps those the method uses
+        // (`Learners::used_by`).
+        let learners = Learners {
+            focal: self.focal_guide.as_mut(),
+            guide_shares: self.guide_shares.as_mut(),
+            lights: self.light_guide.as_mut(),
+            gate: self.gate.as_mut(),
+            environment: self.environment_guide.as_mut(),
+            ..Learners::default()
         };
-        Ok(match self.guide.as_mut().filter(|_| guided) {
+        let job = RenderJob { scene: &self.scene, intersector: &self.intersector, learners, settings, on_pass };
+        let importance = self.importance_guide.as_mut();
+        Ok(match self.guide.as_mut() {
             Some(guide) => guide.visit(importance, job),
             // No directional guide: the grid's type stands in for the structure.
             None => job.run::<HemisphereGrid>(None, None),

@@ -11,7 +11,7 @@ use guiding_core::{
 
 use super::counters::PathCounters;
 use super::direct::LightSampleRecord;
-use super::method::{EnvironmentSampling, LightSelection, Method};
+use super::method::Method;
 use super::settings::IntegratorSettings;
 use crate::color::luminance;
 use crate::material::{Material, ShadingFrame};
@@ -177,9 +177,9 @@ pub(super) fn nee_partner_pdf(bsdf_pdf: f32, guide_share: f32, focal_share: f32)
 pub(super) const MAX_MASK_CROSSINGS: u32 = 64;
 
 impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
-    /// A tracer; `guide` is used by the guided methods only, `light_guide` when lights
-    /// are selected as learned, `environment_guide` when the environment is sampled by
-    /// tiles.
+    /// A tracer with the learners its method uses (`render::Learners::used_by` decides
+    /// which): it uses every one it is given, `guide` at the guided vertices,
+    /// `light_guide` to select lights, `environment_guide` to sample the environment.
     pub fn new(
         scene: &'a Scene,
         intersector: &'a I,
@@ -196,11 +196,6 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             (true, false) => 0.5,
             (false, _) => 0.0,
         };
-        let guide = if settings.method.uses_guide() { guide } else { None };
-        let focal = focal.filter(|_| settings.method.uses_guide() && settings.focal_probability > 0.0);
-        let light_guide = light_guide.filter(|_| settings.light_selection == LightSelection::Learned);
-        let environment_guide =
-            environment_guide.filter(|_| settings.environment_sampling == EnvironmentSampling::Tiles);
         let masks = scene.has_masks();
         let carries_path = guide.is_some_and(|g| g.update_rule().integral == IntegralEstimator::PathContinuation);
         Self {
@@ -228,12 +223,15 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
     }
 
     /// The tracer with W, the importance the light subpaths of bdpt-guided and
-    /// vpl-guided learn and are guided by (used by those alone).
+    /// vpl-guided learn and are guided by.
     pub fn with_importance_guide(mut self, importance: Option<&'a G>) -> Self {
-        let method = self.settings.method;
-        let uses = method.bidirectional() || method.gathers_virtual_lights();
-        self.importance = importance.filter(|_| self.guide.is_some() && uses);
+        self.importance = importance;
         self
+    }
+
+    /// W, where the tracer has it.
+    pub fn importance_guide(&self) -> Option<&'a G> {
+        self.importance
     }
 
     /// The tracer with bdpt's connection roulette: a connection whose weighted, unblocked
@@ -244,17 +242,15 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         self
     }
 
-    /// The tracer with a next-event gate (used where the method estimates next-event
-    /// light).
+    /// The tracer with a next-event gate, for methods that estimate next-event light.
     pub fn with_gate(mut self, gate: Option<&'a NextEventGate>) -> Self {
-        self.gate = gate.filter(|_| self.settings.method.uses_nee());
+        self.gate = gate;
         self
     }
 
-    /// The tracer with the directional guide's learned shares (used where
-    /// `learned_guide_share` is set and a guide is there).
+    /// The tracer with the directional guide's learned shares, where it has the guide.
     pub fn with_guide_shares(mut self, shares: Option<&'a StrategyShares>) -> Self {
-        self.guide_shares = shares.filter(|_| self.guide.is_some() && self.settings.learned_guide_share);
+        self.guide_shares = shares;
         self
     }
 
