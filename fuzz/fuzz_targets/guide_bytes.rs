@@ -156,9 +156,9 @@ fn check_light_guide(mode: u8, rest: &[u8]) {
         let settings = LightGuideSettings { resolution: Some([1 + p(0) % 3, 1, 1]), ..Default::default() };
         let powers: Vec<f32> = (0..1 + p(1) % 5).map(|l| 1.0 + l as f32).collect();
         let mut guide = LightGuide::new(Vec3::ZERO, Vec3::ONE, &powers, settings).expect("a valid small light guide");
-        let cell = guide.cell(Vec3::splat(0.3)).expect("inside");
+        let cell = guide.locate(Vec3::splat(0.3)).expect("inside");
         guide.update(cell, 0, 3.0, true);
-        guide.rebuild();
+        guide.rebuild_sampling();
         let mut bytes = guide.to_bytes();
         for edit in edits.chunks_exact(3) {
             let position = u16::from_le_bytes([edit[0], edit[1]]) as usize % bytes.len();

@@ -166,7 +166,7 @@ impl StrategyShares {
 
     /// Picks each cell's share from what it learned. The moments were measured against
     /// the strategy of their time: older ones fade by half at every rebuild.
-    pub fn rebuild(&mut self) {
+    pub fn rebuild_sampling(&mut self) {
         let cells = self.shares.iter_mut().zip(&self.moments).zip(&self.means).zip(&self.arrivals);
         for (((share, moments), mean), arrivals) in cells {
             let seen = atomic_f32::load(arrivals);
@@ -245,7 +245,7 @@ mod tests {
             shares.record(&arrival);
         }
         assert!(!shares.any(), "nothing before the first rebuild");
-        shares.rebuild();
+        shares.rebuild_sampling();
         assert_eq!(shares.share(good), *CANDIDATES.last().unwrap());
         assert_eq!(shares.share(blind), 0.0);
         assert!(shares.any());
@@ -294,7 +294,7 @@ mod tests {
                 selection: 0.0,
             });
         }
-        shares.rebuild();
+        shares.rebuild_sampling();
     }
 
     /// A cost keeps the strategy out of the cell whose variance it halves (0.49 × 2.5 >

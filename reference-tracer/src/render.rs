@@ -268,7 +268,7 @@ pub fn render<I: Intersector, G: Guide>(
                 focal.rebuild_sampling();
             }
             if let Some(shares) = guide_shares.as_deref_mut() {
-                shares.rebuild();
+                shares.rebuild_sampling();
             }
         }
         // Training stops early where guiding idles: once the shares learned from at least
@@ -288,16 +288,16 @@ pub fn render<I: Intersector, G: Guide>(
             }
         }
         if let Some(light_guide) = light_guide.as_deref_mut() {
-            light_guide.rebuild();
+            light_guide.rebuild_sampling();
         }
         if let Some(gate) = gate.as_deref_mut() {
             // The gate counts only in learning passes: nothing to refit after others.
             if integrator.learn {
-                gate.rebuild();
+                gate.rebuild_sampling();
             }
         }
         if let Some(environment_guide) = environment_guide.as_deref_mut() {
-            environment_guide.rebuild();
+            environment_guide.rebuild_sampling();
         }
         statistics.guide_rebuild_seconds += rebuild.elapsed().as_secs_f64();
         let seconds = start.elapsed().as_secs_f64();

@@ -226,7 +226,7 @@ pub unsafe extern "C" fn lodestar_env_guide_cell(
         let guide = unsafe { shared(guide) }?;
         let out = unsafe { Output::new(out_cell, "out_cell") }?;
         let position = point(position, "position")?;
-        let found = guide.cell(position).ok_or_else(|| {
+        let found = guide.locate(position).ok_or_else(|| {
             Failure::new(LodestarStatus::InvalidArgument, format!("`position` {position} has no cell"))
         })?;
         out.write(found.0);
@@ -334,7 +334,7 @@ pub unsafe extern "C" fn lodestar_env_guide_rebuild(guide: *mut LodestarEnvGuide
     guarded("lodestar_env_guide_rebuild", || {
         // SAFETY: checked non-NULL and aligned; exclusivity is the caller's contract.
         unsafe { borrow(guide.cast_const(), "guide") }?;
-        unsafe { &mut *guide }.guide.rebuild();
+        unsafe { &mut *guide }.guide.rebuild_sampling();
         Ok(())
     })
 }

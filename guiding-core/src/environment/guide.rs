@@ -18,7 +18,7 @@ use super::settings::{EnvTileGuideSettings, ENTRY_BYTES};
 use super::sun::SunDisk;
 use super::tiles::EnvironmentTiles;
 
-/// A cell of an [`EnvTileGuide`]'s grid: the region [`EnvTileGuide::cell`] returns.
+/// A cell of an [`EnvTileGuide`]'s grid: the region [`EnvTileGuide::locate`] returns.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct EnvCell(pub u32);
 
@@ -55,13 +55,13 @@ pub struct EnvSample {
 ///
 /// let tiles = EnvironmentTiles::new(8, 4, &[1.0; 32], [4, 2])?;
 /// let mut guide = EnvTileGuide::new(Vec3::ZERO, Vec3::ONE, tiles, None, EnvTileGuideSettings::default())?;
-/// let cell = guide.cell(Vec3::splat(0.5)).expect("finite");
+/// let cell = guide.locate(Vec3::splat(0.5)).expect("finite");
 /// // Only light from straight up (+y) ever arrives in this cell.
 /// for i in 0..1000 {
 ///     let s = guide.distribution(cell).sample_lobe(0.37 * i as f32 % 1.0, Vec2::new(0.5, 0.5));
 ///     guide.update(cell, &s, if s.direction.y > 0.0 { 1.0 } else { 0.0 });
 /// }
-/// guide.rebuild();
+/// guide.rebuild_sampling();
 /// let up = guide.distribution(cell).pdf(Vec3::new(0.1, 0.9, 0.0).normalize());
 /// let down = guide.distribution(cell).pdf(Vec3::new(0.1, -0.9, 0.0).normalize());
 /// assert!(up > 5.0 * down && down > 0.0);
@@ -122,14 +122,14 @@ impl EnvTileGuide {
             cdf: vec![0.0; entries],
             rejected: AtomicUsize::new(0),
         };
-        guide.rebuild();
+        guide.rebuild_sampling();
         Ok(guide)
     }
 
     /// The cell holding `position`; points outside the bounds use the nearest cell.
     /// `None` for a non-finite position.
     #[inline]
-    pub fn cell(&self, position: Vec3) -> Option<EnvCell> {
+    pub fn locate(&self, position: Vec3) -> Option<EnvCell> {
         self.grid.cell(position).map(EnvCell)
     }
 
@@ -188,7 +188,7 @@ impl EnvTileGuide {
         }
         atomic_f32::merge_running_averages(&self.values, &self.updates, &other.values, &other.updates);
         self.rejected.fetch_add(other.rejected.load(Ordering::Relaxed), Ordering::Relaxed);
-        self.rebuild();
+        self.rebuild_sampling();
         Ok(())
     }
 
@@ -199,7 +199,7 @@ impl EnvTileGuide {
             counter.store(0, Ordering::Relaxed);
         }
         self.rejected.store(0, Ordering::Relaxed);
-        self.rebuild();
+        self.rebuild_sampling();
     }
 
     /// Rebuilds every cell's lobe CDF from what it learned: probability
@@ -207,7 +207,7 @@ impl EnvTileGuide {
     /// (cells that learned nothing yet use the power and uniform shares alone). Lobes
     /// without power (black tiles) keep probability 0: they bring no light. Call between
     /// passes.
-    pub fn rebuild(&mut self) {
+    pub fn rebuild_sampling(&mut self) {
         let (power_mix, uniform_mix) = (self.settings.power_mix as f64, self.settings.uniform_mix as f64);
         let uniform = uniform_mix / self.lit_lobes.max(1) as f64;
         for cell in 0..self.grid.cell_count() {
@@ -382,7 +382,7 @@ mod tests {
         let sun = sun.then(|| SunDisk::new(Vec3::new(0.4, 0.9, -0.2), 2f32.to_radians(), 500.0).unwrap());
         let settings = EnvTileGuideSettings { resolution: Some([2, 2, 2]), ..Default::default() };
         let mut guide = EnvTileGuide::new(Vec3::ZERO, Vec3::ONE, tiles, sun, settings).unwrap();
-        let cell = guide.cell(Vec3::splat(0.1)).unwrap();
+        let cell = guide.locate(Vec3::splat(0.1)).unwrap();
         let luminance = sky(64, 32);
         let mut rng = Pcg32::new(5, 6);
         for _ in 0..20_000 {
@@ -398,7 +398,7 @@ mod tests {
             let visible = s.direction.y > 0.3;
             guide.update(cell, &s, if visible { radiance * s.direction.y } else { 0.0 });
         }
-        guide.rebuild();
+        guide.rebuild_sampling();
         (guide, cell)
     }
 
@@ -427,13 +427,13 @@ mod tests {
         let (mut first, second, mut whole) = (make(), make(), make());
         let mut rng = Pcg32::new(3, 3);
         for i in 0..20_000 {
-            let cell = whole.cell(Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32())).unwrap();
+            let cell = whole.locate(Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32())).unwrap();
             let s = whole.distribution(cell).sample_lobe(rng.next_f32(), rng.next_vec2());
             let integrand = if s.direction.y > 0.2 { rng.next_f32() } else { 0.0 };
             whole.update(cell, &s, integrand);
             (if i % 2 == 0 { &first } else { &second }).update(cell, &s, integrand);
         }
-        whole.rebuild();
+        whole.rebuild_sampling();
         first.merge(&second).unwrap();
         for cell in 0..whole.cell_count() as u32 {
             for lobe in 0..whole.lobe_count() as u32 {
@@ -472,7 +472,7 @@ mod tests {
     fn the_pdf_integrates_to_one() {
         for sun in [false, true] {
             let (guide, cell) = learned_guide(sun);
-            let far = guide.cell(Vec3::ONE).unwrap();
+            let far = guide.locate(Vec3::ONE).unwrap();
             for c in [cell, far] {
                 let integral = pdf_integral(&guide, c);
                 assert!((integral - 1.0).abs() < 1e-4, "sun {sun}: ∫ pdf = {integral}");
@@ -522,7 +522,7 @@ mod tests {
         let lobe = guide.sun_lobe().unwrap();
         assert!(distribution.lobe_probability(lobe) > 0.1, "{}", distribution.lobe_probability(lobe));
         // An unlearned cell: power shares; the sun holds 500·2π(1 − cos 2°) of the power.
-        let far = guide.distribution(guide.cell(Vec3::ONE).unwrap());
+        let far = guide.distribution(guide.locate(Vec3::ONE).unwrap());
         assert!(far.lobe_probability(lobe) > 0.0);
         let d = sun.sample(Vec2::new(0.5, 0.5));
         assert!(distribution.pdf(d) >= distribution.lobe_probability(lobe) * sun.pdf());
@@ -535,13 +535,13 @@ mod tests {
         let luminance: Vec<f32> = (0..w * h).map(|i| if i / w < h / 2 { 1.0 } else { 0.0 }).collect();
         let tiles = EnvironmentTiles::new(w, h, &luminance, [8, 4]).unwrap();
         let mut guide = EnvTileGuide::new(Vec3::ZERO, Vec3::ONE, tiles, None, Default::default()).unwrap();
-        let cell = guide.cell(Vec3::ZERO).unwrap();
+        let cell = guide.locate(Vec3::ZERO).unwrap();
         // Only one tile ever brings light.
         for _ in 0..100 {
             let (direction, lobe_pdf) = guide.tiles().sample_in_tile(3, Vec2::splat(0.5));
             guide.update(cell, &EnvSample { direction, pdf: 0.0, lobe: EnvLobe(3), lobe_pdf }, 1.0);
         }
-        guide.rebuild();
+        guide.rebuild_sampling();
         let distribution = guide.distribution(cell);
         for t in 0..32 {
             let p = distribution.lobe_probability(EnvLobe(t));
@@ -562,7 +562,7 @@ mod tests {
             assert_eq!(guide.update(cell, &EnvSample { lobe_pdf, ..s }, 1.0), UpdateOutcome::OutsideDomain);
         }
         assert_eq!(guide.rejected_updates(), 2);
-        assert_eq!(guide.cell(Vec3::NAN), None);
+        assert_eq!(guide.locate(Vec3::NAN), None);
     }
 
     #[test]
@@ -587,7 +587,7 @@ mod tests {
             let sun = SunDisk::new(Vec3::new(0.0, 1.0, 1.0), 1f32.to_radians(), sun_luminance).unwrap();
             let settings = EnvTileGuideSettings { resolution: Some([2, 1, 1]), ..Default::default() };
             let mut guide = EnvTileGuide::new(Vec3::ZERO, Vec3::ONE, tiles, Some(sun), settings).unwrap();
-            let cell = guide.cell(Vec3::ZERO).unwrap();
+            let cell = guide.locate(Vec3::ZERO).unwrap();
             for &(lobe, integrand, u, v) in &updates {
                 let lobe = EnvLobe(lobe % 33);
                 let (direction, lobe_pdf) = if lobe.0 == 32 {
@@ -597,7 +597,7 @@ mod tests {
                 };
                 guide.update(cell, &EnvSample { direction, pdf: 0.0, lobe, lobe_pdf }, integrand);
             }
-            guide.rebuild();
+            guide.rebuild_sampling();
             for c in 0..guide.cell_count() as u32 {
                 let distribution = guide.distribution(EnvCell(c));
                 let mut total = 0.0f64;

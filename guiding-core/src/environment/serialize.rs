@@ -111,7 +111,7 @@ pub(crate) fn decode(bytes: &[u8], tiles: EnvironmentTiles, sun: Option<SunDisk>
     }
     r.finish()?;
     guide.rejected.store(usize::try_from(rejected).unwrap_or(usize::MAX), Ordering::Relaxed);
-    guide.rebuild();
+    guide.rebuild_sampling();
     Ok(guide)
 }
 
@@ -137,11 +137,11 @@ mod tests {
         let mut guide = EnvTileGuide::new(Vec3::ZERO, Vec3::ONE, tiles, sun, settings).unwrap();
         let mut rng = Pcg32::new(3, 3);
         for _ in 0..2_000 {
-            let cell = guide.cell(Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32())).unwrap();
+            let cell = guide.locate(Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32())).unwrap();
             let sample = guide.distribution(cell).sample_lobe(rng.next_f32(), rng.next_vec2());
             guide.update(cell, &sample, rng.next_f32() * sample.direction.y.max(0.0));
         }
-        guide.rebuild();
+        guide.rebuild_sampling();
         guide
     }
 

@@ -267,7 +267,7 @@ impl FocalGuide {
     /// where neighbours are alike (`merge_ratio`), the heaviest `max_boxes` of them, each
     /// chosen by its mass.
     pub fn rebuild_sampling(&mut self) {
-        self.selection.rebuild();
+        self.selection.rebuild_sampling();
         self.boxes.clear();
         self.cdf.clear();
         self.box_lanes.clear();

@@ -66,11 +66,11 @@ impl NextEventGateSettings {
 /// use glam::Vec3;
 ///
 /// let mut gate = NextEventGate::new(Vec3::ZERO, Vec3::ONE, NextEventGateSettings::default())?;
-/// let cell = gate.cell(Vec3::splat(0.1)).expect("inside the bounds");
+/// let cell = gate.locate(Vec3::splat(0.1)).expect("inside the bounds");
 /// for _ in 0..1000 {
 ///     gate.record(cell, false); // behind the door: nothing arrives
 /// }
-/// gate.rebuild();
+/// gate.rebuild_sampling();
 /// assert_eq!(gate.probability(cell), 0.1); // the floor
 /// # Ok::<(), guiding_core::Error>(())
 /// ```
@@ -102,7 +102,7 @@ impl NextEventGate {
     /// The cell holding `position`; points outside the bounds use the nearest cell.
     /// `None` for a non-finite position.
     #[inline]
-    pub fn cell(&self, position: Vec3) -> Option<GateCell> {
+    pub fn locate(&self, position: Vec3) -> Option<GateCell> {
         self.grid.cell(position).map(GateCell)
     }
 
@@ -124,7 +124,7 @@ impl NextEventGate {
     }
 
     /// Sets every cell's probability from the shadow rays it counted. Call between passes.
-    pub fn rebuild(&mut self) {
+    pub fn rebuild_sampling(&mut self) {
         let NextEventGateSettings { scale, floor, .. } = self.settings;
         for ((probability, shots), arrivals) in self.probability.iter_mut().zip(&self.shots).zip(&self.arrivals) {
             let (shots, arrivals) = (shots.load(Ordering::Relaxed), arrivals.load(Ordering::Relaxed));
@@ -163,10 +163,10 @@ mod tests {
         let settings = NextEventGateSettings { scale: 5.0, floor: 0.1, ..Default::default() };
         let mut g = NextEventGate::new(Vec3::ZERO, Vec3::new(4.0, 2.0, 1.0), settings).unwrap();
         let (hidden, lit, half, young) = (
-            g.cell(Vec3::new(0.1, 0.1, 0.1)).unwrap(),
-            g.cell(Vec3::new(3.9, 1.9, 0.9)).unwrap(),
-            g.cell(Vec3::new(2.0, 1.0, 0.5)).unwrap(),
-            g.cell(Vec3::new(3.9, 0.1, 0.1)).unwrap(),
+            g.locate(Vec3::new(0.1, 0.1, 0.1)).unwrap(),
+            g.locate(Vec3::new(3.9, 1.9, 0.9)).unwrap(),
+            g.locate(Vec3::new(2.0, 1.0, 0.5)).unwrap(),
+            g.locate(Vec3::new(3.9, 0.1, 0.1)).unwrap(),
         );
         for i in 0..1000 {
             g.record(hidden, false);
@@ -180,14 +180,14 @@ mod tests {
         for cell in [hidden, lit, half, young] {
             assert_eq!(g.probability(cell), 1.0, "open until the first rebuild");
         }
-        g.rebuild();
+        g.rebuild_sampling();
         assert_eq!(g.probability(hidden), 0.1, "closed to the floor");
         assert_eq!(g.probability(lit), 1.0);
         assert!((g.probability(half) - 0.25).abs() < 1e-6, "{}", g.probability(half));
         assert_eq!(g.probability(young), 1.0, "too few rays to judge");
         assert_eq!(g.probability(GateCell(u32::MAX)), 1.0);
         g.record(GateCell(u32::MAX), true); // ignored, no panic
-        assert_eq!(g.cell(Vec3::NAN), None);
+        assert_eq!(g.locate(Vec3::NAN), None);
         assert!(g.memory_bytes() <= settings.budget_bytes + core::mem::size_of::<NextEventGate>());
     }
 

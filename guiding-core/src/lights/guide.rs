@@ -14,7 +14,7 @@ use crate::update_rule::{classify_target, UpdateOutcome};
 
 use super::settings::{LightGuideSettings, LightUpdateRule, ENTRY_BYTES, MAX_LIGHTS};
 
-/// A cell of a [`LightGuide`]'s grid: the region [`LightGuide::cell`] returns.
+/// A cell of a [`LightGuide`]'s grid: the region [`LightGuide::locate`] returns.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct LightCell(pub u32);
 
@@ -38,12 +38,12 @@ pub struct LightChoice {
 ///
 /// // Two equal lights; from this corner of the scene only light 1 is ever visible.
 /// let mut guide = LightGuide::new(Vec3::ZERO, Vec3::ONE, &[1.0, 1.0], LightGuideSettings::default())?;
-/// let cell = guide.cell(Vec3::splat(0.1)).expect("inside the bounds");
+/// let cell = guide.locate(Vec3::splat(0.1)).expect("inside the bounds");
 /// for _ in 0..100 {
 ///     guide.update(cell, 0, 0.0, false);
 ///     guide.update(cell, 1, 2.0, true);
 /// }
-/// guide.rebuild();
+/// guide.rebuild_sampling();
 /// assert!(guide.probability(cell, 1) > 0.85);
 /// assert!(guide.probability(cell, 0) > 0.0); // never zero
 /// let choice = guide.select(cell, 0.5);
@@ -100,13 +100,13 @@ impl LightGuide {
             cdf: vec![0.0; entries],
             rejected: AtomicUsize::new(0),
         };
-        guide.rebuild();
+        guide.rebuild_sampling();
         Ok(guide)
     }
 
     /// The cell holding `position`; points outside the bounds use the nearest cell.
     /// `None` for a non-finite position.
-    pub fn cell(&self, position: Vec3) -> Option<LightCell> {
+    pub fn locate(&self, position: Vec3) -> Option<LightCell> {
         self.grid.cell(position).map(LightCell)
     }
 
@@ -193,7 +193,7 @@ impl LightGuide {
             );
         }
         self.rejected.fetch_add(other.rejected.load(Ordering::Relaxed), Ordering::Relaxed);
-        self.rebuild();
+        self.rebuild_sampling();
         Ok(())
     }
 
@@ -204,14 +204,14 @@ impl LightGuide {
             counter.store(0, Ordering::Relaxed);
         }
         self.rejected.store(0, Ordering::Relaxed);
-        self.rebuild();
+        self.rebuild_sampling();
     }
 
     /// Rebuilds every cell's selection CDF from what it learned: probability
     /// (1 - power_mix - uniform_mix)·V/ΣV + power_mix·power share + uniform_mix/lights
     /// (cells that learned nothing yet use power and uniform shares alone). Call between
     /// passes.
-    pub fn rebuild(&mut self) {
+    pub fn rebuild_sampling(&mut self) {
         let (power_mix, uniform_mix) = (self.settings.power_mix as f64, self.settings.uniform_mix as f64);
         let mut learned = vec![0.0f64; self.lights];
         for cell in 0..self.cell_count() {
@@ -296,12 +296,12 @@ mod tests {
     fn reset_gives_the_guide_made_fresh() {
         let fresh = guide(&[1.0, 3.0], LightGuideSettings::default());
         let mut learned = guide(&[1.0, 3.0], LightGuideSettings::default());
-        let cell = learned.cell(Vec3::ONE).unwrap();
+        let cell = learned.locate(Vec3::ONE).unwrap();
         for i in 0..50 {
             learned.update(cell, i % 2, 2.0, i % 3 != 0);
         }
         learned.update(cell, 0, f32::NAN, true);
-        learned.rebuild();
+        learned.rebuild_sampling();
         assert_ne!(learned.to_bytes(), fresh.to_bytes());
         learned.reset();
         assert_eq!(learned.to_bytes(), fresh.to_bytes());
@@ -320,14 +320,14 @@ mod tests {
             let mut rng = Pcg32::new(8, 1);
             for i in 0..20_000 {
                 let point = Vec3::new(4.0 * rng.next_f32(), 2.0 * rng.next_f32(), rng.next_f32());
-                let cell = whole.cell(point).unwrap();
+                let cell = whole.locate(point).unwrap();
                 let light = rng.next_u32() % 4;
                 let (contribution, unoccluded) = (rng.next_f32() * (1 + light) as f32, rng.next_f32() < 0.6);
                 whole.update(cell, light, contribution, unoccluded);
                 let half = if i % 2 == 0 { &first } else { &second };
                 half.update(cell, light, contribution, unoccluded);
             }
-            whole.rebuild();
+            whole.rebuild_sampling();
             first.merge(&second).unwrap();
             for cell in 0..whole.cell_count() as u32 {
                 for light in 0..4 {
@@ -350,13 +350,13 @@ mod tests {
     fn sampling_matches_the_probabilities_by_chi_square() {
         let powers: Vec<f32> = (0..40).map(|i| 1.0 + (i % 7) as f32 * 3.0).collect();
         let mut g = guide(&powers, LightGuideSettings::default());
-        let cell = g.cell(Vec3::new(1.0, 1.0, 0.5)).unwrap();
+        let cell = g.locate(Vec3::new(1.0, 1.0, 0.5)).unwrap();
         let mut rng = Pcg32::new(4, 4);
         for _ in 0..10_000 {
             let light = rng.next_u32() % 40;
             g.update(cell, light, (light % 5) as f32 * rng.next_f32(), rng.next_f32() < 0.5);
         }
-        g.rebuild();
+        g.rebuild_sampling();
         let probabilities: Vec<f64> = (0..40).map(|l| g.probability(cell, l) as f64).collect();
         assert!((probabilities.iter().sum::<f64>() - 1.0).abs() < 1e-6);
         let mut observed = vec![0u64; 40];
@@ -380,17 +380,17 @@ mod tests {
             [LightUpdateRule::UnoccludedAverage, LightUpdateRule::MeanContribution, LightUpdateRule::VisibilityRatio]
         {
             let mut g = guide(&[1.0, 1.0, 1.0], LightGuideSettings { rule, ..Default::default() });
-            let cell = g.cell(Vec3::ONE).unwrap();
+            let cell = g.locate(Vec3::ONE).unwrap();
             for _ in 0..1000 {
                 g.update(cell, 0, 1.0, false);
                 g.update(cell, 1, 1.0, true);
                 g.update(cell, 2, 0.1, true);
             }
-            g.rebuild();
+            g.rebuild_sampling();
             let p: Vec<f32> = (0..3).map(|l| g.probability(cell, l)).collect();
             assert!(p[1] > p[0] && p.iter().all(|&x| x > 0.0), "{rule:?}: {p:?}");
             // Other cells learned nothing: power and uniform shares only.
-            let far = g.cell(Vec3::new(3.9, 0.1, 0.1)).unwrap();
+            let far = g.locate(Vec3::new(3.9, 0.1, 0.1)).unwrap();
             assert_ne!(far, cell);
             let q = g.probability(far, 0);
             assert!((q - 1.0 / 3.0).abs() < 1e-6, "{q}");
@@ -400,13 +400,13 @@ mod tests {
     #[test]
     fn bad_input_is_rejected_and_counted() {
         let g = guide(&[1.0, 2.0], LightGuideSettings::default());
-        let cell = g.cell(Vec3::ONE).unwrap();
+        let cell = g.locate(Vec3::ONE).unwrap();
         assert_eq!(g.update(cell, 0, f32::NAN, true), UpdateOutcome::RejectedNonFinite);
         assert_eq!(g.update(cell, 0, -1.0, true), UpdateOutcome::RejectedNegative);
         assert_eq!(g.update(cell, 9, 1.0, true), UpdateOutcome::OutsideDomain);
         assert_eq!(g.rejected_updates(), 2);
-        assert_eq!(g.cell(Vec3::NAN), None);
-        assert_eq!(g.cell(Vec3::splat(-1e30)), Some(LightCell(0)));
+        assert_eq!(g.locate(Vec3::NAN), None);
+        assert_eq!(g.locate(Vec3::splat(-1e30)), Some(LightCell(0)));
         assert_eq!(g.probability(cell, 9), 0.0);
         let error = |powers: &[f32], settings| LightGuide::new(Vec3::ZERO, Vec3::ONE, powers, settings).unwrap_err();
         assert!(matches!(error(&[], Default::default()), Error::InvalidSetting { name: "light_count", .. }));
@@ -429,11 +429,11 @@ mod tests {
             let rule = [LightUpdateRule::UnoccludedAverage, LightUpdateRule::MeanContribution, LightUpdateRule::VisibilityRatio][rule];
             let settings = LightGuideSettings { resolution: Some([2, 1, 1]), budget_bytes: 1 << 20, rule, ..Default::default() };
             let mut g = guide(&powers, settings);
-            let cell = g.cell(Vec3::ZERO).unwrap();
+            let cell = g.locate(Vec3::ZERO).unwrap();
             for &(light, contribution, unoccluded) in &updates {
                 g.update(cell, light % powers.len() as u32, contribution, unoccluded);
             }
-            g.rebuild();
+            g.rebuild_sampling();
             for c in 0..g.cell_count() as u32 {
                 let total: f64 = (0..powers.len() as u32).map(|l| {
                     let p = g.probability(LightCell(c), l);

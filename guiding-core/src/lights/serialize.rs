@@ -12,7 +12,7 @@
 //! ```
 //!
 //! The selection CDFs are not stored: loading rebuilds them from V, as
-//! [`LightGuide::rebuild`] would.
+//! [`LightGuide::rebuild_sampling`] would.
 
 use alloc::vec::Vec;
 use core::sync::atomic::Ordering;
@@ -122,7 +122,7 @@ pub(crate) fn decode(bytes: &[u8]) -> Result<LightGuide, Error> {
     r.finish()?;
     guide.power_share = power_share;
     guide.rejected.store(usize::try_from(rejected).unwrap_or(usize::MAX), Ordering::Relaxed);
-    guide.rebuild();
+    guide.rebuild_sampling();
     Ok(guide)
 }
 
@@ -140,12 +140,12 @@ mod tests {
         let mut guide = LightGuide::new(Vec3::ZERO, Vec3::new(3.0, 2.0, 1.0), &[1.0, 4.0, 0.5], settings).unwrap();
         let mut rng = Pcg32::new(7, 7);
         for _ in 0..2_000 {
-            let cell = guide.cell(Vec3::new(3.0 * rng.next_f32(), 2.0 * rng.next_f32(), rng.next_f32())).unwrap();
+            let cell = guide.locate(Vec3::new(3.0 * rng.next_f32(), 2.0 * rng.next_f32(), rng.next_f32())).unwrap();
             let light = rng.next_u32() % 3;
             guide.update(cell, light, rng.next_f32() * (light + 1) as f32, rng.next_f32() < 0.7);
         }
-        guide.update(guide.cell(Vec3::ONE).unwrap(), 0, f32::NAN, true);
-        guide.rebuild();
+        guide.update(guide.locate(Vec3::ONE).unwrap(), 0, f32::NAN, true);
+        guide.rebuild_sampling();
         guide
     }
 

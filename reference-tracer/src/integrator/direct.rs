@@ -52,7 +52,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
     /// environment) draws direction `wi` from `from`.
     pub(super) fn environment_pdf(&self, environment: &Environment, from: Vec3, wi: Vec3) -> f32 {
         match self.environment_guide {
-            Some(guide) => guide.cell(from).map_or(0.0, |cell| guide.distribution(cell).pdf(wi)),
+            Some(guide) => guide.locate(from).map_or(0.0, |cell| guide.distribution(cell).pdf(wi)),
             None => environment.pdf(wi),
         }
     }
@@ -114,7 +114,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             let Some(environment) = &self.scene.environment else { return nothing };
             match self.environment_guide {
                 Some(guide) => {
-                    let Some(cell) = guide.cell(point) else { return nothing };
+                    let Some(cell) = guide.locate(point) else { return nothing };
                     let s = clock.time(|| guide.distribution(cell).sample_lobe(u_select, u));
                     tile = Some((cell, s));
                     (

@@ -157,8 +157,8 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             // from here share.
             let nee_cells = if nee && !delta {
                 NeeCells {
-                    light: self.light_guide.and_then(|guide| guide.cell(point)),
-                    gate: self.gate.and_then(|gate| gate.cell(point)),
+                    light: self.light_guide.and_then(|guide| guide.locate(point)),
+                    gate: self.gate.and_then(|gate| gate.locate(point)),
                 }
             } else {
                 NeeCells::default()
