@@ -11,7 +11,6 @@ use glam::{Vec2, Vec3};
 use super::distribution::ALIGNED_COS;
 use super::quadtree::{self, QuadNode};
 use super::square::{direction_to_square, from_axis_frame, square_to_direction, to_axis_frame};
-use crate::atomic_f32;
 
 /// Cells per side of the quadtree a leaf gets when its axis changes (depth 4: 85 nodes),
 /// read from its old tree; the next refit splits and merges it as usual.
@@ -20,20 +19,39 @@ pub(crate) const ROTATED_SIDE: usize = 16;
 pub(crate) const ROTATED_NODES: usize = 85;
 
 /// A leaf's records of the current epoch, per half of the leaf along the axis it would
-/// split next: how many, and how many had a normal along world x, y and z (either sign,
-/// within [`ALIGNED_COS`]). The halves let a split's two new leaves each pick their axis.
+/// split next: how many had a normal along world x, y and z (either sign, within
+/// [`ALIGNED_COS`]) and how many along none, so that a record is one increment. The
+/// halves let a split's two new leaves each pick their axis.
 #[derive(Debug, Default)]
 pub(crate) struct LeafCounts([AtomicU32; 8]);
 
+/// Counts stop this far below `u32::MAX`: an increment is a load and an add, not a
+/// compare-exchange loop, and concurrent adders cannot wrap a count past the gap.
+const COUNT_CEILING: u32 = u32::MAX - (1 << 20);
+
 impl LeafCounts {
-    /// Counts from their stored values (half 0's records and x, y, z votes, then half 1's).
-    pub(crate) fn from_values(values: [u32; 8]) -> Self {
-        Self(values.map(AtomicU32::new))
+    /// Counts from their stored values (per half: the records, then the x, y and z votes);
+    /// `None` where a half's votes add up to more than its records.
+    pub(crate) fn from_values(values: [u32; 8]) -> Option<Self> {
+        let mut counts = [0u32; 8];
+        for half in 0..2 {
+            let [records, x, y, z] = [0, 1, 2, 3].map(|i| values[4 * half + i]);
+            let none = (records as u64).checked_sub(x as u64 + y as u64 + z as u64)?;
+            counts[4 * half..4 * half + 4].copy_from_slice(&[x, y, z, none as u32]);
+        }
+        Some(Self(counts.map(AtomicU32::new)))
     }
 
-    /// The counts as stored.
+    /// The counts as stored (per half: the records, then the x, y and z votes).
     pub(crate) fn values(&self) -> [u32; 8] {
-        self.0.each_ref().map(|c| c.load(Ordering::Relaxed))
+        let c = self.0.each_ref().map(|c| c.load(Ordering::Relaxed));
+        let mut values = [0u32; 8];
+        for half in 0..2 {
+            let counts = &c[4 * half..4 * half + 4];
+            let records = counts.iter().map(|&n| n as u64).sum::<u64>().min(u32::MAX as u64) as u32;
+            values[4 * half..4 * half + 4].copy_from_slice(&[records, counts[0], counts[1], counts[2]]);
+        }
+        values
     }
 
     /// Records in both halves.
@@ -45,10 +63,10 @@ impl LeafCounts {
     /// Counts one record in `half` (0 or 1) whose surface had `normal`.
     #[inline]
     pub(crate) fn add(&self, half: usize, normal: Vec3) {
-        let base = 4 * (half & 1);
-        atomic_f32::increment_saturating(&self.0[base]);
-        if let Some(axis) = aligned_axis(normal) {
-            atomic_f32::increment_saturating(&self.0[base + 1 + axis as usize]);
+        let slot = 4 * (half & 1) + aligned_axis(normal).unwrap_or(3) as usize;
+        let count = &self.0[slot];
+        if count.load(Ordering::Relaxed) < COUNT_CEILING {
+            count.fetch_add(1, Ordering::Relaxed);
         }
     }
 
@@ -69,7 +87,7 @@ impl LeafCounts {
 
 impl Clone for LeafCounts {
     fn clone(&self) -> Self {
-        Self::from_values(self.values())
+        Self(self.0.each_ref().map(|c| AtomicU32::new(c.load(Ordering::Relaxed))))
     }
 }
 
@@ -108,4 +126,22 @@ pub(crate) fn rotated_cells(nodes: &[QuadNode], root: u32, old_axis: u32, axis: 
             sum
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn leaf_counts_count_one_slot_per_record_and_keep_their_stored_form() {
+        let counts = LeafCounts::default();
+        counts.add(0, Vec3::Y);
+        counts.add(0, Vec3::new(0.6, 0.8, 0.0));
+        counts.add(1, -Vec3::Z);
+        assert_eq!(counts.values(), [2, 0, 1, 0, 1, 0, 0, 1]);
+        assert_eq!(counts.records(), 3);
+        let stored = [10, 3, 4, 2, 5, 0, 0, 5];
+        assert_eq!(LeafCounts::from_values(stored).map(|c| c.values()), Some(stored));
+        assert!(LeafCounts::from_values([2, 3, 0, 0, 0, 0, 0, 0]).is_none(), "more votes than records");
+    }
 }

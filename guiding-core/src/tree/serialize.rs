@@ -146,7 +146,14 @@ pub(crate) fn from_bytes(bytes: &[u8]) -> Result<SpatialDirectionalTree, Error> 
         for value in &mut values {
             *value = r.u32()?;
         }
-        leaf_counts.push(LeafCounts::from_values(values));
+        let Some(leaf_count) = LeafCounts::from_values(values) else {
+            return Err(invalid_field(
+                "leaf.counts",
+                index,
+                "per half, x, y and z votes adding up to at most the records",
+            ));
+        };
+        leaf_counts.push(leaf_count);
     }
     let (mut quad, mut sums) = (Vec::with_capacity(counts[2]), Vec::with_capacity(counts[2] * 4));
     for _ in 0..counts[2] {
