@@ -12,14 +12,36 @@ use reference_tracer::scene_intersector::IntersectorChoice;
 pub use reference_tracer::schedule::Schedule;
 
 /// A fresh temporary folder for one test; each call its own, so tests running at once
-/// that ask for the same name never share (or delete) each other's files.
+/// that ask for the same name never share (or delete) each other's files. They all sit
+/// in one folder per test process (`lodestar-tests/PID`), and the first call of a process
+/// removes the folders of processes that have ended: a run leaves at most its own behind.
 pub fn temp_folder(name: &str) -> PathBuf {
     static CALLS: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
     let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-    let folder = std::env::temp_dir().join(format!("lodestar-{name}-{}-{call}", std::process::id()));
+    let root = std::env::temp_dir().join("lodestar-tests");
+    if call == 0 {
+        remove_finished_runs(&root);
+    }
+    let folder = root.join(std::process::id().to_string()).join(format!("{name}-{call}"));
     let _ = std::fs::remove_dir_all(&folder);
     std::fs::create_dir_all(&folder).unwrap();
     folder
+}
+
+/// Removes the folders under `root` named after processes that no longer run (`/proc`
+/// has no entry for them); elsewhere, where there is no `/proc`, it removes nothing.
+fn remove_finished_runs(root: &Path) {
+    if !Path::new("/proc/self").exists() {
+        return;
+    }
+    let Ok(entries) = std::fs::read_dir(root) else { return };
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let Some(pid) = name.to_str().and_then(|n| n.parse::<u32>().ok()) else { continue };
+        if !Path::new("/proc").join(pid.to_string()).exists() {
+            let _ = std::fs::remove_dir_all(entry.path());
+        }
+    }
 }
 
 /// Writes `json` as scene.json in `folder` and returns its path.
