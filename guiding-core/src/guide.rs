@@ -127,3 +127,43 @@ pub struct GuideStats {
     /// Learning epochs completed (calls to `rebuild_sampling`).
     pub epochs: u32,
 }
+
+/// The counters every table structure keeps: per entry its visits, and the targets it
+/// rejected.
+#[cfg(any(feature = "hemisphere", feature = "volume"))]
+pub(crate) struct TableCounters<'a> {
+    /// Updates per entry.
+    pub(crate) visits: &'a [core::sync::atomic::AtomicU32],
+    /// Targets rejected for being NaN or infinite.
+    pub(crate) rejected_non_finite: u64,
+    /// Targets rejected for being negative.
+    pub(crate) rejected_negative: u64,
+}
+
+#[cfg(any(feature = "hemisphere", feature = "volume"))]
+impl GuideStats {
+    /// The statistics of a structure of `regions` tables of `entries_per_region` entries
+    /// each, holding `memory_bytes`, after `epochs` epochs, from its `counters`.
+    pub(crate) fn of_tables(
+        regions: usize,
+        entries_per_region: usize,
+        memory_bytes: usize,
+        epochs: u32,
+        counters: TableCounters<'_>,
+    ) -> Self {
+        use core::sync::atomic::Ordering;
+        let visits = counters.visits.iter().map(|v| v.load(Ordering::Relaxed));
+        let (accepted_updates, visited_entries) =
+            visits.fold((0u64, 0usize), |(sum, count), v| (sum + v as u64, count + (v > 0) as usize));
+        GuideStats {
+            regions,
+            entries_per_region,
+            memory_bytes,
+            accepted_updates,
+            visited_entries,
+            rejected_non_finite: counters.rejected_non_finite,
+            rejected_negative: counters.rejected_negative,
+            epochs,
+        }
+    }
+}

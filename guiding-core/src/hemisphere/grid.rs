@@ -11,7 +11,7 @@ use crate::cdf::build_cdf;
 use crate::error::Error;
 use crate::frame::Frame;
 use crate::geometry::Triangle;
-use crate::guide::{Guide, GuideStats};
+use crate::guide::{Guide, GuideStats, TableCounters};
 use crate::scattering::ScatteringFunction;
 use crate::update_rule::{accept_target, blend, importance_weight, IntegralEstimator, UpdateOutcome};
 
@@ -558,19 +558,12 @@ impl Guide for HemisphereGrid {
     }
 
     fn stats(&self) -> GuideStats {
-        let visits = self.patch_visits.iter().map(|v| v.load(Ordering::Relaxed));
-        let (accepted, visited) =
-            visits.fold((0u64, 0usize), |(sum, count), v| (sum + v as u64, count + (v > 0) as usize));
-        GuideStats {
-            regions: self.probe_count(),
-            entries_per_region: self.patch_count(),
-            memory_bytes: self.memory_bytes(),
-            accepted_updates: accepted,
-            visited_entries: visited,
+        let counters = TableCounters {
+            visits: &self.patch_visits,
             rejected_non_finite: self.rejected_non_finite.load(Ordering::Relaxed) as u64,
             rejected_negative: self.rejected_negative.load(Ordering::Relaxed) as u64,
-            epochs: self.epoch,
-        }
+        };
+        GuideStats::of_tables(self.probe_count(), self.patch_count(), self.memory_bytes(), self.epoch, counters)
     }
 
     fn validate(&self) -> Result<(), Error> {

@@ -11,7 +11,7 @@ use crate::cdf::{build_cdf, cdf_probability, sample_cdf};
 use crate::cell_grid::CellGrid;
 use crate::distribution::{fold_onto_hemisphere, folded_pdf, DirectionSample, DirectionalDistribution};
 use crate::error::Error;
-use crate::guide::{Guide, GuideStats};
+use crate::guide::{Guide, GuideStats, TableCounters};
 use crate::scattering::ScatteringFunction;
 use crate::update_rule::{accept_target, blend, importance_weight, IntegralEstimator, UpdateOutcome};
 
@@ -589,19 +589,12 @@ impl Guide for IrradianceVolume {
     }
 
     fn stats(&self) -> GuideStats {
-        let visits = self.patch_visits.iter().map(|v| v.load(Ordering::Relaxed));
-        let (accepted, visited) =
-            visits.fold((0u64, 0usize), |(sum, count), v| (sum + v as u64, count + (v > 0) as usize));
-        GuideStats {
-            regions: self.leaf_count(),
-            entries_per_region: self.patch_count(),
-            memory_bytes: self.memory_bytes(),
-            accepted_updates: accepted,
-            visited_entries: visited,
+        let counters = TableCounters {
+            visits: &self.patch_visits,
             rejected_non_finite: self.rejected_non_finite.load(Ordering::Relaxed) as u64,
             rejected_negative: self.rejected_negative.load(Ordering::Relaxed) as u64,
-            epochs: self.epoch,
-        }
+        };
+        GuideStats::of_tables(self.leaf_count(), self.patch_count(), self.memory_bytes(), self.epoch, counters)
     }
 
     fn validate(&self) -> Result<(), Error> {
