@@ -38,6 +38,8 @@ mod low_discrepancy;
 mod path_recorder;
 mod scattering;
 mod strategy_share;
+#[cfg(any(feature = "hemisphere", feature = "volume"))]
+mod table_checks;
 mod update_rule;
 pub mod validation;
 

@@ -580,28 +580,8 @@ impl Guide for HemisphereGrid {
                 return invalid("normals", i, "finite and unit length");
             }
         }
-        let floor = self.settings.q_floor;
-        for (i, q) in self.q.iter().enumerate() {
-            let q = atomic_f32::load(q);
-            if !(q.is_finite() && q >= floor) {
-                return invalid("q", i, "finite and at least q_floor");
-            }
-        }
-        for (p, row) in self.cdf.chunks_exact(self.patch_count()).enumerate() {
-            let mut previous = 0.0;
-            for (k, &c) in row.iter().enumerate() {
-                if !(c >= previous && c <= 1.0)
-                    || c != libm::roundf(c / crate::cdf::PROBABILITY_QUANTUM) * crate::cdf::PROBABILITY_QUANTUM
-                {
-                    return invalid("cdf", p * row.len() + k, "non-decreasing multiples of 2^-24 in [0, 1]");
-                }
-                previous = c;
-            }
-            if previous != 1.0 {
-                return invalid("cdf", p * row.len() + row.len() - 1, "ending at 1");
-            }
-        }
-        Ok(())
+        crate::table_checks::check_q(&self.q, self.settings.q_floor)?;
+        crate::table_checks::check_cdf_rows(&self.cdf, self.patch_count())
     }
 
     fn to_bytes(&self) -> Vec<u8> {

@@ -599,12 +599,8 @@ impl Guide for IrradianceVolume {
 
     fn validate(&self) -> Result<(), Error> {
         super::serialize::check_tree(&self.nodes, self.grid.cell_count(), self.leaf_count())?;
-        let floor = self.settings.q_floor;
-        if let Some(i) = self.q.iter().position(|q| !(atomic_f32::load(q).is_finite() && atomic_f32::load(q) >= floor))
-        {
-            return Err(crate::bytes::invalid_field("q", i, "finite and at least q_floor"));
-        }
-        super::serialize::check_cdfs(&self.cdf, self.patch_count())
+        crate::table_checks::check_q(&self.q, self.settings.q_floor)?;
+        crate::table_checks::check_cdf_rows(&self.cdf, self.patch_count())
     }
 
     fn to_bytes(&self) -> Vec<u8> {

@@ -121,25 +121,6 @@ pub(crate) fn check_tree(nodes: &[u32], roots: usize, leaves: usize) -> Result<(
     Ok(())
 }
 
-/// Checks every leaf's CDF: non-decreasing multiples of 2⁻²⁴ in [0, 1] ending at 1.
-pub(crate) fn check_cdfs(cdf: &[f32], patches: usize) -> Result<(), Error> {
-    for (leaf, row) in cdf.chunks_exact(patches).enumerate() {
-        let mut previous = 0.0;
-        for (k, &c) in row.iter().enumerate() {
-            if !(c >= previous && c <= 1.0)
-                || c != libm::roundf(c / crate::cdf::PROBABILITY_QUANTUM) * crate::cdf::PROBABILITY_QUANTUM
-            {
-                return Err(invalid_field("cdf", leaf * patches + k, "non-decreasing multiples of 2^-24 in [0, 1]"));
-            }
-            previous = c;
-        }
-        if previous != 1.0 {
-            return Err(invalid_field("cdf", leaf * patches + patches - 1, "ending at 1"));
-        }
-    }
-    Ok(())
-}
-
 fn read_u32s(r: &mut ByteReader<'_>, count: usize) -> Result<Vec<u32>, DecodeError> {
     (0..count).map(|_| r.u32()).collect()
 }
@@ -177,7 +158,7 @@ pub(crate) fn decode(bytes: &[u8]) -> Result<IrradianceVolume, Error> {
     }
     let patch_visits = read_u32s(&mut r, leaf_count * patches)?;
     let cdf = read_f32s(&mut r, leaf_count * patches)?;
-    check_cdfs(&cdf, patches)?;
+    crate::table_checks::check_cdf_rows(&cdf, patches)?;
     let coefficients = read_f32s(&mut r, leaf_count * 9)?;
     if let Some(i) = coefficients.iter().position(|c| !c.is_finite()) {
         return Err(invalid_field("irradiance", i, "finite"));
