@@ -96,8 +96,6 @@ pub struct GpuTracer {
     rebuild: wgpu::ComputePipeline,
     rebuild_group: wgpu::BindGroup,
     guide: GuideBuffers,
-    /// Regions (probes or leaves) and patches of the uploaded guide (0 when unguided).
-    guide_size: (u32, u32),
     /// The host's copy of an uploaded volume, which splits its leaves between passes.
     volume: Option<IrradianceVolume>,
     /// The host's copy of an uploaded mixture, which takes the M-step between passes.
@@ -304,7 +302,6 @@ impl GpuTracer {
         let bind_group = group(&pipeline, &(0..19).collect::<Vec<u32>>(), "trace");
         let rebuild_group = group(&rebuild, &[0, 13, 15, 16, 17, 18, 19], "rebuild");
         context.check_errors()?;
-        let guide_size = (params.guide_regions, params.guide_patches);
         let volume = match guide {
             Some(GpuGuide::Volume(volume)) => Some(volume.clone()),
             _ => None,
@@ -327,7 +324,6 @@ impl GpuTracer {
             rebuild,
             rebuild_group,
             guide: guide_buffers,
-            guide_size,
             volume,
             mixture,
             host_readback,
@@ -359,7 +355,7 @@ impl GpuTracer {
                 // Between passes: the CDFs of the probes or leaves that learned.
                 pass.set_pipeline(&self.rebuild);
                 pass.set_bind_group(0, &self.rebuild_group, &[]);
-                pass.dispatch_workgroups(self.guide_size.0.div_ceil(64), 1, 1);
+                pass.dispatch_workgroups(self.params.guide_regions.div_ceil(64), 1, 1);
             }
         }
         encoder.copy_buffer_to_buffer(&self.image, 0, &self.image_readback, 0, self.image.size());
@@ -418,7 +414,7 @@ impl GpuTracer {
                 }
             }
             statistics.add_pass(sum, width * height, counters);
-            let learns = settings.integrator.method.uses_guide() && self.params.guide_learns != 0;
+            let learns = self.params.guide_learns != 0;
             let fate = if learns && start.elapsed().as_secs_f64() < settings.train_seconds {
                 PassFate::Discard
             } else {
@@ -452,7 +448,6 @@ impl GpuTracer {
         volume.rebuild_sampling();
         self.guide.write_volume(&self.context.queue, volume);
         self.params.guide_regions = volume.leaf_count() as u32;
-        self.guide_size.0 = volume.leaf_count() as u32;
         Ok(())
     }
 

@@ -52,8 +52,8 @@ impl GpuTracer {
     pub fn download_guide(&self, grid: &mut HemisphereGrid) -> Result<(), String> {
         if self.volume.is_some()
             || self.mixture.is_some()
-            || self.guide_size.0 as usize != grid.probe_count()
-            || self.guide_size.1 as usize != grid.patch_count()
+            || self.params.guide_regions as usize != grid.probe_count()
+            || self.params.guide_patches as usize != grid.patch_count()
         {
             return Err("the grid does not match the one uploaded".into());
         }
@@ -68,8 +68,8 @@ impl GpuTracer {
     /// direction and the GPU's pdf per steradian each), for tests of the GPU sampler: a
     /// probe of the grid, or a leaf of the volume folded about `normal`.
     pub fn sample_guide(&mut self, region: u32, normal: Vec3, count: u32, seed: u32) -> Result<Vec<[f32; 4]>, String> {
-        if region >= self.guide_size.0 {
-            return Err(format!("region {region} of {}", self.guide_size.0));
+        if region >= self.params.guide_regions {
+            return Err(format!("region {region} of {}", self.params.guide_regions));
         }
         let device = &self.context.device;
         let samples = device.create_buffer(&wgpu::BufferDescriptor {
