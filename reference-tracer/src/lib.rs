@@ -10,6 +10,7 @@
 //! The data path runs one way: scene → intersector → integrator → guide → image.
 
 pub mod animation;
+pub mod backend;
 pub mod camera;
 pub mod cli;
 pub mod color;
@@ -20,6 +21,7 @@ pub mod film;
 pub mod gpu;
 pub mod import;
 pub mod integrator;
+pub mod learners;
 pub mod lights;
 pub mod material;
 pub mod metrics;
@@ -32,4 +34,5 @@ pub mod sampling;
 pub mod scene;
 pub mod scene_intersector;
 pub mod schedule;
+pub mod session;
 pub mod texture;

@@ -9,10 +9,10 @@ mod support;
 
 use guiding_core::{HemisphereGridSettings, SpatialDirectionalTreeSettings};
 use reference_tracer::animation::frame_seed;
-use reference_tracer::cli::{prepare_with_lights, LightRequest};
 use reference_tracer::integrator::Method;
 use reference_tracer::output::Image;
 use reference_tracer::scene_intersector::IntersectorChoice;
+use reference_tracer::session::{prepare_with_lights, LightRequest};
 use support::{assert_agree, mean_estimate, render_image, render_scheduled, render_settings, settings, Schedule};
 
 /// Cornell at 24×24, its camera moving 0.3 to the right over the animation (the box is
@@ -49,16 +49,16 @@ fn frames(coherent: bool) -> Vec<Image> {
     let scene = moving_cornell();
     let request = LightRequest::new(None, None, false);
     let prepare = || prepare_with_lights(&scene, IntersectorChoice::default(), None, request).unwrap();
-    let mut prepared = prepare();
-    assert_eq!(prepared.scene.camera_keyframes.len(), 2);
+    let mut session = prepare();
+    assert_eq!(session.scene.camera_keyframes.len(), 2);
     let mut images = Vec::new();
     for frame in 0..16 {
         if frame > 0 && !coherent {
-            prepared = prepare();
+            session = prepare();
         }
-        prepared.scene.camera = prepared.scene.frame_camera(frame, 16);
+        session.scene.camera = session.scene.frame_camera(frame, 16);
         let render = render_settings(settings(Method::Vpl), 2, frame_seed(5, frame, coherent), Schedule::Online);
-        images.push(prepared.render(&render, |_| {}).unwrap().0);
+        images.push(session.render(&render, |_| {}).unwrap().0);
     }
     images
 }

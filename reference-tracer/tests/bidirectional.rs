@@ -119,10 +119,10 @@ fn bdpt_renders_the_caustic_scene_with_a_fraction_of_nees_noise() {
 #[test]
 fn bdpt_refuses_what_it_cannot_render() {
     let window = repository_scene("window", 16, 16);
-    let lights = reference_tracer::cli::LightRequest::new(None, None, false);
+    let lights = reference_tracer::session::LightRequest::new(None, None, false);
     let choice = reference_tracer::scene_intersector::IntersectorChoice::default();
-    let mut prepared = reference_tracer::cli::prepare_with_lights(&window, choice, None, lights).unwrap();
+    let mut session = reference_tracer::session::prepare_with_lights(&window, choice, None, lights).unwrap();
     let render = support::render_settings(settings(Method::Bdpt), 1, 1, Schedule::Online);
-    let error = prepared.render(&render, |_| {}).unwrap_err();
+    let error = session.render(&render, |_| {}).unwrap_err();
     assert!(error.starts_with("bdpt:") && error.contains("environment"), "{error}");
 }

@@ -119,7 +119,7 @@ fn embree_and_obvhs_agree_on_every_shipped_scene() {
 fn cornell_renders_the_same_with_either_intersector() {
     let scene = support::repository_scene("cornell", 32, 32);
     let render = |choice| {
-        let prepared = reference_tracer::cli::prepare(&scene, choice, None).unwrap();
+        let session = reference_tracer::session::prepare(&scene, choice, None).unwrap();
         let settings = reference_tracer::render::RenderSettings {
             integrator: support::settings(Method::Nee),
             budget: reference_tracer::render::Budget::SamplesPerPixel(64),
@@ -130,8 +130,8 @@ fn cornell_renders_the_same_with_either_intersector() {
             training_share: reference_tracer::schedule::DEFAULT_TRAINING_SHARE,
         };
         let (_, statistics) = reference_tracer::render::render(
-            &prepared.scene,
-            &prepared.intersector,
+            &session.scene,
+            session.cpu().intersector(),
             reference_tracer::render::Learners::<guiding_core::HemisphereGrid>::default(),
             &settings,
             |_| {},

@@ -10,12 +10,12 @@ use guiding_core::{
     GaussianMixtureSettings, HemisphereGridSettings, IntegralEstimator, IrradianceVolumeSettings, LearningRate,
     NextEventGateSettings, SpatialDirectionalTreeSettings, UpdateRule,
 };
-use reference_tracer::cli::{prepare_with_lights, LightRequest};
 use reference_tracer::directional_guide::DirectionalGuide;
 use reference_tracer::directional_guide::DirectionalGuideSettings;
 use reference_tracer::integrator::{EnvironmentSampling, LightSelection, Method};
 use reference_tracer::render::{Budget, RenderSettings};
 use reference_tracer::scene_intersector::IntersectorChoice;
+use reference_tracer::session::{prepare_with_lights, LightRequest};
 use serde_json::json;
 use support::{mean_estimate, render_scene, settings, MeanEstimate, Schedule};
 
@@ -102,9 +102,9 @@ fn a_furnace_of_split_lights_converges_to_le_over_one_minus_albedo() {
         let mut lights = LightRequest::new(Some(LightSelection::Learned), None, true);
         lights.split = Some(4);
         let guide = method.uses_guide().then(|| HemisphereGridSettings { probe_count: Some(60), ..Default::default() });
-        let mut prepared =
+        let mut session =
             prepare_with_lights(&scene, IntersectorChoice::default(), guide.map(Into::into), lights).unwrap();
-        assert_eq!(prepared.scene.lights.len(), 12 * 16);
+        assert_eq!(session.scene.lights.len(), 12 * 16);
         let render = RenderSettings {
             integrator,
             budget: Budget::SamplesPerPixel(48),
@@ -114,7 +114,7 @@ fn a_furnace_of_split_lights_converges_to_le_over_one_minus_albedo() {
             combine: reference_tracer::film::Combine::default(),
             training_share: reference_tracer::schedule::DEFAULT_TRAINING_SHARE,
         };
-        let (_, statistics) = prepared.render(&render, |_| {}).unwrap();
+        let (_, statistics) = session.render(&render, |_| {}).unwrap();
         let estimate = mean_estimate(&statistics);
         assert!(
             (estimate.mean - expected).abs() <= 4.0 * estimate.standard_error,
@@ -347,7 +347,7 @@ fn assert_focal_agrees(scene: &std::path::Path, spp: u32, reference_spp: u32, ga
             budget_bytes: 1 << 10,
             ..Default::default()
         });
-        let mut prepared = prepare_with_lights(scene, IntersectorChoice::default(), guide, lights).unwrap();
+        let mut session = prepare_with_lights(scene, IntersectorChoice::default(), guide, lights).unwrap();
         let render = RenderSettings {
             integrator,
             budget: Budget::SamplesPerPixel(spp),
@@ -357,15 +357,15 @@ fn assert_focal_agrees(scene: &std::path::Path, spp: u32, reference_spp: u32, ga
             combine,
             training_share: reference_tracer::schedule::DEFAULT_TRAINING_SHARE,
         };
-        let (image, statistics) = prepared.render(&render, |_| {}).unwrap();
-        let boxes = prepared.focal_guide.as_ref().map_or(0, |f| f.boxes().len());
-        assert_eq!(prepared.guide_shares.is_some(), integrator.learned_guide_share, "{name}: the shares");
+        let (image, statistics) = session.render(&render, |_| {}).unwrap();
+        let boxes = session.learners.focal_guide.as_ref().map_or(0, |f| f.boxes().len());
+        assert_eq!(session.learners.guide_shares.is_some(), integrator.learned_guide_share, "{name}: the shares");
         // Cornell has no opening: its boxes are few (two, say) and may be none; the gated
         // case is there for the gate, the inverse-variance one for the image's weights.
         let for_boxes = gate_scale == 0.0 && combine == Combine::default();
         assert!(boxes > 0 || !for_boxes, "{name}: the focal guide learned no boxes");
         if gate_scale > 0.0 {
-            let gate = prepared.gate.as_ref().expect("the gate was built");
+            let gate = session.learners.gate.as_ref().expect("the gate was built");
             let closed =
                 (0..gate.cell_count() as u32).filter(|&c| gate.probability(guiding_core::GateCell(c)) < 1.0).count();
             assert!(closed > 0 || !gate_closes, "{name}: the gate never closed");
@@ -397,10 +397,10 @@ fn assert_split_lights_agree(scene: &std::path::Path, spp: u32, reference_spp: u
     lights.split = Some(4);
     lights.settings.budget_bytes = 64 << 10;
     lights.gate = Some(NextEventGateSettings { budget_bytes: 1 << 10, ..Default::default() });
-    let mut prepared = prepare_with_lights(scene, IntersectorChoice::default(), None, lights).unwrap();
-    prepared.focal_settings.deposits_per_segment = 0;
-    assert_eq!(prepared.scene.lights.split_count(), 4);
-    assert!(prepared.light_guide.as_ref().is_some_and(|g| g.light_count() == prepared.scene.lights.len()));
+    let mut session = prepare_with_lights(scene, IntersectorChoice::default(), None, lights).unwrap();
+    session.learners.focal_settings.deposits_per_segment = 0;
+    assert_eq!(session.scene.lights.split_count(), 4);
+    assert!(session.learners.light_guide.as_ref().is_some_and(|g| g.light_count() == session.scene.lights.len()));
     let render = RenderSettings {
         integrator,
         budget: Budget::SamplesPerPixel(spp),
@@ -410,7 +410,7 @@ fn assert_split_lights_agree(scene: &std::path::Path, spp: u32, reference_spp: u
         combine: reference_tracer::film::Combine::default(),
         training_share: reference_tracer::schedule::DEFAULT_TRAINING_SHARE,
     };
-    let (_, statistics) = prepared.render(&render, |_| {}).unwrap();
+    let (_, statistics) = session.render(&render, |_| {}).unwrap();
     support::assert_agree("guided-nee over split lights vs nee", &mean_estimate(&statistics), &reference);
 }
 
@@ -442,8 +442,7 @@ fn path_continuation_targets_carry_russian_roulette() {
             reference_tracer::integrator::IntegratorSettings { max_depth: 64, rr_depth, ..settings(Method::Guided) };
         let lights = LightRequest::new(Some(LightSelection::Power), Some(EnvironmentSampling::Luminance), false);
         let tree = SpatialDirectionalTreeSettings::default();
-        let mut prepared =
-            prepare_with_lights(&scene, IntersectorChoice::default(), Some(tree.into()), lights).unwrap();
+        let mut session = prepare_with_lights(&scene, IntersectorChoice::default(), Some(tree.into()), lights).unwrap();
         let render = RenderSettings {
             integrator,
             budget: Budget::SamplesPerPixel(64),
@@ -453,8 +452,8 @@ fn path_continuation_targets_carry_russian_roulette() {
             combine: reference_tracer::film::Combine::default(),
             training_share: reference_tracer::schedule::DEFAULT_TRAINING_SHARE,
         };
-        prepared.render(&render, |_| {}).unwrap();
-        let Some(DirectionalGuide::Tree(tree)) = &prepared.guide else { panic!("a tree guide") };
+        session.render(&render, |_| {}).unwrap();
+        let Some(DirectionalGuide::Tree(tree)) = &session.learners.guide else { panic!("a tree guide") };
         let fluxes: Vec<f64> = (0..tree.leaf_count() as u32).map(|leaf| tree.leaf_flux(leaf) as f64).collect();
         let mean = fluxes.iter().sum::<f64>() / fluxes.len() as f64;
         let tolerance = if rr_depth == 0 { 0.02 } else { 0.04 };
@@ -532,7 +531,7 @@ fn gated_next_event_estimation_agrees_with_lights_and_an_environment() {
     let mut lights = LightRequest::new(Some(integrator.light_selection), Some(integrator.environment_sampling), true);
     lights.gate = Some(NextEventGateSettings { scale: 5.0, budget_bytes: 1 << 10, ..Default::default() });
     let guide = HemisphereGridSettings { probe_count: Some(400), ..Default::default() };
-    let mut prepared = prepare_with_lights(&scene, IntersectorChoice::default(), Some(guide.into()), lights).unwrap();
+    let mut session = prepare_with_lights(&scene, IntersectorChoice::default(), Some(guide.into()), lights).unwrap();
     let render = RenderSettings {
         integrator,
         budget: Budget::SamplesPerPixel(256),
@@ -542,8 +541,8 @@ fn gated_next_event_estimation_agrees_with_lights_and_an_environment() {
         combine: reference_tracer::film::Combine::default(),
         training_share: reference_tracer::schedule::DEFAULT_TRAINING_SHARE,
     };
-    let (_, statistics) = prepared.render(&render, |_| {}).unwrap();
-    let gate = prepared.gate.as_ref().expect("the gate was built");
+    let (_, statistics) = session.render(&render, |_| {}).unwrap();
+    let gate = session.learners.gate.as_ref().expect("the gate was built");
     let closed = (0..gate.cell_count() as u32).filter(|&c| gate.probability(guiding_core::GateCell(c)) < 1.0).count();
     assert!(closed > 0, "the gate never closed");
     support::assert_agree("guided-nee gated vs nee", &mean_estimate(&statistics), &reference);

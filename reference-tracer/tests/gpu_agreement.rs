@@ -12,13 +12,14 @@ mod support;
 use std::path::Path;
 
 use guiding_core::Guide;
-use reference_tracer::cli::{prepare_with_lights, Device, LightRequest};
+use reference_tracer::backend::Device;
 use reference_tracer::gpu::GpuContext;
 use reference_tracer::integrator::{EnvironmentSampling, IntegratorSettings, LightSelection, Method};
 use reference_tracer::metrics::image_error;
 use reference_tracer::output::Image;
 use reference_tracer::render::{Budget, RenderSettings, RenderStatistics};
 use reference_tracer::scene_intersector::IntersectorChoice;
+use reference_tracer::session::{prepare_with_lights, LightRequest};
 
 /// Whether an adapter exists; panics when none does and one is required.
 fn adapter_available(test: &str) -> bool {
@@ -53,8 +54,8 @@ fn integrator(method: Method) -> IntegratorSettings {
 
 fn render(scene: &Path, device: Device, method: Method, spp: u32, seed: u64) -> (Image, RenderStatistics) {
     let (integrator, lights) = (integrator(method), power_lights());
-    let mut prepared = prepare_with_lights(scene, IntersectorChoice::default(), None, lights).unwrap();
-    prepared.device = device;
+    let mut session = prepare_with_lights(scene, IntersectorChoice::default(), None, lights).unwrap();
+    session.device = device;
     let settings = RenderSettings {
         integrator,
         budget: Budget::SamplesPerPixel(spp),
@@ -64,7 +65,7 @@ fn render(scene: &Path, device: Device, method: Method, spp: u32, seed: u64) -> 
         combine: reference_tracer::film::Combine::default(),
         training_share: reference_tracer::schedule::DEFAULT_TRAINING_SHARE,
     };
-    prepared.render(&settings, |_| {}).unwrap()
+    session.render(&settings, |_| {}).unwrap()
 }
 
 /// GPU and CPU agree on `scene`'s mean, and their images differ by no more than two CPU
@@ -111,8 +112,8 @@ fn unsupported_scenes_are_refused_with_a_reason() {
     }
     // The window scene's image environment is not on the GPU yet.
     let scene = support::repository_scene("window", 8, 8);
-    let mut prepared = prepare_with_lights(&scene, IntersectorChoice::default(), None, power_lights()).unwrap();
-    prepared.device = Device::Gpu;
+    let mut session = prepare_with_lights(&scene, IntersectorChoice::default(), None, power_lights()).unwrap();
+    session.device = Device::Gpu;
     let settings = RenderSettings {
         integrator: IntegratorSettings { method: Method::Nee, ..Default::default() },
         budget: Budget::SamplesPerPixel(1),
@@ -122,7 +123,7 @@ fn unsupported_scenes_are_refused_with_a_reason() {
         combine: reference_tracer::film::Combine::default(),
         training_share: reference_tracer::schedule::DEFAULT_TRAINING_SHARE,
     };
-    let error = prepared.render(&settings, |_| {}).expect_err("refused");
+    let error = session.render(&settings, |_| {}).expect_err("refused");
     assert!(error.contains("image environment"), "{error}");
 }
 
@@ -167,8 +168,8 @@ fn render_learning(
     let density_weighted_learning = matches!(settings, DirectionalGuideSettings::Mixture(_));
     let integrator = IntegratorSettings { density_weighted_learning, nee_weighs_guide: true, ..integrator(method) };
     let lights = power_lights();
-    let mut prepared = prepare_with_lights(scene, IntersectorChoice::default(), Some(settings), lights).unwrap();
-    prepared.device = device;
+    let mut session = prepare_with_lights(scene, IntersectorChoice::default(), Some(settings), lights).unwrap();
+    session.device = device;
     let settings = RenderSettings {
         integrator,
         budget: Budget::SamplesPerPixel(spp),
@@ -178,8 +179,8 @@ fn render_learning(
         combine: reference_tracer::film::Combine::default(),
         training_share: reference_tracer::schedule::DEFAULT_TRAINING_SHARE,
     };
-    let (_, statistics) = prepared.render(&settings, |_| {}).unwrap();
-    (statistics, prepared.guide.expect("a guide was built"))
+    let (_, statistics) = session.render(&settings, |_| {}).unwrap();
+    (statistics, session.learners.guide.expect("a guide was built"))
 }
 
 /// [`render_learning`] with a hemisphere grid of `probes` probes.
@@ -278,7 +279,7 @@ fn the_volume_guides_on_the_gpu_without_bias_and_splits_like_the_cpu() {
     guided_renders_agree_with_cpu_nee(41, render_with, |label, scene, method, spp, gpu| {
         let (_, cpu) = render_with(scene, Device::Cpu, method, spp, 44);
         let fresh = prepare_with_lights(scene, IntersectorChoice::default(), Some(settings.into()), power_lights());
-        let Some(DirectionalGuide::Volume(fresh)) = fresh.unwrap().guide else { panic!("a volume was built") };
+        let Some(DirectionalGuide::Volume(fresh)) = fresh.unwrap().learners.guide else { panic!("a volume was built") };
         assert!(gpu.validate().is_ok(), "{label}");
         assert!(gpu.memory_bytes() <= settings.budget_bytes, "{label}: {} bytes", gpu.memory_bytes());
         // Leaves split on the host between GPU passes, as many as on the CPU.
@@ -334,15 +335,28 @@ fn gpu_sampler_report<D: DirectionalDistribution>(
     axis: Vec3,
 ) -> ChiSquareReport {
     let scene = support::repository_scene("cornell", 24, 24);
-    let prepared = prepare_with_lights(&scene, IntersectorChoice::default(), None, power_lights()).unwrap();
+    let session = prepare_with_lights(&scene, IntersectorChoice::default(), None, power_lights()).unwrap();
     let integrator = IntegratorSettings { method: Method::GuidedNee, ..Default::default() };
-    let mut gpu = GpuTracer::new(GpuContext::new().unwrap(), &prepared.scene, &integrator, Some(guide)).unwrap();
+    let mut gpu = GpuTracer::new(GpuContext::new().unwrap(), &session.scene, &integrator, Some(guide)).unwrap();
     let settings = ChiSquareSettings::default();
     let samples = gpu.sample_guide(region, normal, settings.samples, 17).unwrap();
+    // guiding-core maps a direction to its patch with an atan2 good to 2e-6 rad, the
+    // shader with its own: a direction drawn within that of a patch's edge may fall in
+    // the neighbour on the CPU. Such a sample must match the CPU a hair's breadth away,
+    // and be rare.
+    let mut at_edges = 0;
     for s in samples.iter().take(1000) {
-        let expected = cpu.pdf(Vec3::new(s[0], s[1], s[2]));
-        assert!((s[3] - expected).abs() <= 1e-3 * expected, "GPU pdf {} vs CPU {expected}", s[3]);
+        let direction = Vec3::new(s[0], s[1], s[2]);
+        let matches = |pdf: f32| (s[3] - pdf).abs() <= 1e-3 * pdf;
+        if matches(cpu.pdf(direction)) {
+            continue;
+        }
+        let (t, b) = direction.any_orthonormal_pair();
+        let nearby = [t, -t, b, -b].map(|offset| cpu.pdf((direction + 2e-5 * offset).normalize()));
+        assert!(nearby.into_iter().any(matches), "GPU pdf {} vs CPU {:?} at {direction}", s[3], nearby);
+        at_edges += 1;
     }
+    assert!(at_edges <= 5, "{at_edges} of 1000 GPU samples fall on patch edges");
     let report = chi_square_test(&GpuSamples { samples, next: std::cell::Cell::new(0), cpu }, axis, &settings);
     eprintln!("GPU sampler, region {region}: {report:?}");
     report
@@ -434,13 +448,13 @@ fn totals_between_and_noise<G>(
 /// exactly, and guide the CPU tracer (learning off) to the nee mean within 4 SE.
 fn gpu_learned_guide_serves_the_cpu(settings: DirectionalGuideSettings, bytes: &[u8], seed: u64) {
     let scene = support::repository_scene("cornell", 32, 32);
-    let mut prepared =
+    let mut session =
         prepare_with_lights(&scene, IntersectorChoice::default(), Some(settings), power_lights()).unwrap();
-    let structure = prepared.guide.take().expect("a guide was built").structure();
+    let structure = session.learners.guide.take().expect("a guide was built").structure();
     let loaded = DirectionalGuide::from_bytes(structure, bytes).unwrap();
     let again = loaded.to_bytes();
     assert_eq!(again, bytes, "the GPU's learned state round-trips exactly");
-    prepared.guide = Some(loaded);
+    session.learners.guide = Some(loaded);
     let integrator = IntegratorSettings { method: Method::GuidedNee, learn: false, ..Default::default() };
     let render_settings = RenderSettings {
         integrator,
@@ -451,7 +465,7 @@ fn gpu_learned_guide_serves_the_cpu(settings: DirectionalGuideSettings, bytes: &
         combine: reference_tracer::film::Combine::default(),
         training_share: reference_tracer::schedule::DEFAULT_TRAINING_SHARE,
     };
-    let (_, guided) = prepared.render(&render_settings, |_| {}).unwrap();
+    let (_, guided) = session.render(&render_settings, |_| {}).unwrap();
     let (_, nee) = render(&scene, Device::Cpu, Method::Nee, 192, seed + 1);
     support::assert_agree(
         "cpu guided-nee with the GPU's guide vs nee",
@@ -539,9 +553,9 @@ fn gpu_training_passes_are_discarded_like_the_cpus() {
         return;
     }
     let scene = support::repository_scene("cornell", 16, 16);
-    let mut prepared =
+    let mut session =
         prepare_with_lights(&scene, IntersectorChoice::default(), Some(hemisphere(100)), power_lights()).unwrap();
-    prepared.device = Device::Gpu;
+    session.device = Device::Gpu;
     let settings = RenderSettings {
         integrator: integrator(Method::GuidedNee),
         budget: Budget::SamplesPerPixel(4),
@@ -551,7 +565,7 @@ fn gpu_training_passes_are_discarded_like_the_cpus() {
         combine: reference_tracer::film::Combine::default(),
         training_share: reference_tracer::schedule::DEFAULT_TRAINING_SHARE,
     };
-    let (_, statistics) = prepared.render(&settings, |_| {}).unwrap();
+    let (_, statistics) = session.render(&settings, |_| {}).unwrap();
     assert!(statistics.training_passes > 0, "no training pass");
     assert_eq!(statistics.passes, 4, "the kept passes are the budget's");
 }

@@ -44,16 +44,16 @@ fn light_tracing_renders_cornell_as_nee_does() {
 #[test]
 fn light_tracing_refuses_what_it_cannot_render() {
     let glossy = repository_scene("glossy", 16, 16);
-    let lights = reference_tracer::cli::LightRequest::new(None, None, false);
+    let lights = reference_tracer::session::LightRequest::new(None, None, false);
     let choice = reference_tracer::scene_intersector::IntersectorChoice::default();
-    let mut prepared = reference_tracer::cli::prepare_with_lights(&glossy, choice, None, lights).unwrap();
+    let mut session = reference_tracer::session::prepare_with_lights(&glossy, choice, None, lights).unwrap();
     let render = support::render_settings(settings(Method::Light), 1, 1, Schedule::Online);
-    let error = prepared.render(&render, |_| {}).unwrap_err();
+    let error = session.render(&render, |_| {}).unwrap_err();
     assert!(error.contains("delta triangles"), "{error}");
     let window = repository_scene("window", 16, 16);
-    let lights = reference_tracer::cli::LightRequest::new(None, None, false);
-    let mut prepared = reference_tracer::cli::prepare_with_lights(&window, choice, None, lights).unwrap();
-    let error = prepared.render(&render, |_| {}).unwrap_err();
+    let lights = reference_tracer::session::LightRequest::new(None, None, false);
+    let mut session = reference_tracer::session::prepare_with_lights(&window, choice, None, lights).unwrap();
+    let error = session.render(&render, |_| {}).unwrap_err();
     assert!(error.contains("environment") || error.contains("delta"), "{error}");
 }
 

@@ -8,11 +8,11 @@ mod support;
 use std::path::{Path, PathBuf};
 
 use glam::Vec3;
-use reference_tracer::cli::{prepare_with_lights, LightRequest};
 use reference_tracer::integrator::{IntegratorSettings, Method};
 use reference_tracer::output::{read_image, Image};
 use reference_tracer::render::{Budget, RenderSettings};
 use reference_tracer::scene_intersector::IntersectorChoice;
+use reference_tracer::session::{prepare_with_lights, LightRequest};
 
 fn scene_file(folder: &str, file: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes").join(folder).join(file)
@@ -22,9 +22,9 @@ fn scene_file(folder: &str, file: &str) -> PathBuf {
 fn render_small(path: &Path, width: u32, height: u32, spp: u32) -> Image {
     let integrator = IntegratorSettings { method: Method::Nee, ..Default::default() };
     let lights = LightRequest::new(None, None, true);
-    let mut prepared = prepare_with_lights(path, IntersectorChoice::default(), None, lights)
+    let mut session = prepare_with_lights(path, IntersectorChoice::default(), None, lights)
         .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    prepared.scene.camera = prepared.scene.camera.with_resolution(width, height);
+    session.scene.camera = session.scene.camera.with_resolution(width, height);
     let settings = RenderSettings {
         integrator,
         budget: Budget::SamplesPerPixel(spp),
@@ -34,7 +34,7 @@ fn render_small(path: &Path, width: u32, height: u32, spp: u32) -> Image {
         combine: reference_tracer::film::Combine::default(),
         training_share: reference_tracer::schedule::DEFAULT_TRAINING_SHARE,
     };
-    let (image, _) = prepared.render(&settings, |_| {}).unwrap();
+    let (image, _) = session.render(&settings, |_| {}).unwrap();
     assert!(
         image.pixels.iter().all(|p| p.is_finite() && p.min_element() >= 0.0),
         "{}: non-finite pixels",

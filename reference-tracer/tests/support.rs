@@ -3,13 +3,13 @@
 
 use std::path::{Path, PathBuf};
 
-use reference_tracer::cli::{prepare_with_lights, LightRequest};
 use reference_tracer::directional_guide::DirectionalGuideSettings;
 use reference_tracer::integrator::{IntegratorSettings, Method};
 use reference_tracer::output::Image;
 use reference_tracer::render::{Budget, RenderSettings, RenderStatistics};
 use reference_tracer::scene_intersector::IntersectorChoice;
 pub use reference_tracer::schedule::Schedule;
+use reference_tracer::session::{prepare_with_lights, LightRequest};
 
 /// A fresh temporary folder for one test; each call its own, so tests running at once
 /// that ask for the same name never share (or delete) each other's files. They all sit
@@ -153,8 +153,8 @@ pub fn render_scheduled(
         Some(integrator.environment_sampling),
         integrator.method.uses_nee(),
     );
-    let mut prepared = prepare_with_lights(scene, IntersectorChoice::default(), guide, lights).unwrap();
-    prepared.render(&render_settings(integrator, spp, seed, schedule), |_| {}).unwrap()
+    let mut session = prepare_with_lights(scene, IntersectorChoice::default(), guide, lights).unwrap();
+    session.render(&render_settings(integrator, spp, seed, schedule), |_| {}).unwrap()
 }
 
 /// What a render of `spp` passes of `integrator` under `schedule` runs with.

@@ -6,13 +6,14 @@ use clap::Args;
 
 use super::options::{parse_method, Auto, GuideChoice, TraceOptions};
 use super::outputs::{sibling, statistics_json, write_outputs};
-use super::prepare::{prepare_with_lights, Device};
-use super::progressive::{render_prepared, thread_pool};
+use super::progressive::{render_session, thread_pool};
+use crate::backend::Device;
 use crate::directional_guide::GuideStructure;
 use crate::integrator::{EnvironmentSampling, LightSelection, Method};
 use crate::output::read_image;
 use crate::peer::{run_peer, Peer, PeerSettings};
 use crate::render::{Budget, RenderSettings};
+use crate::session::prepare_with_lights;
 
 #[derive(Debug, Args)]
 pub(super) struct CompareArgs {
@@ -125,18 +126,18 @@ pub(super) fn run_compare(args: &CompareArgs) -> Result<(), String> {
         options.device = compared.device;
         options.light_selection = Auto(compared.selection.or(options.light_selection.0));
         options.env_sampling = Auto(compared.environment.or(options.env_sampling.0));
-        let mut prepared = prepare_with_lights(
+        let mut session = prepare_with_lights(
             &args.scene,
             options.intersector,
             options.directional_guide(method, run.guide)?,
             options.light_request(method)?,
         )?;
-        prepared.resize(options.resolution);
-        prepared.device = compared.device;
-        prepared.focal_settings = options.focal_settings(method)?;
-        prepared.guide_share_cost = options.guide_share_cost;
-        eprintln!("{name}: plan: {}", prepared.plan.describe());
-        let camera = &prepared.scene.camera;
+        session.resize(options.resolution);
+        session.device = compared.device;
+        session.learners.focal_settings = options.focal_settings(method)?;
+        session.learners.guide_share_cost = options.guide_share_cost;
+        eprintln!("{name}: plan: {}", session.plan.describe());
+        let camera = &session.scene.camera;
         if (reference.width, reference.height) != (camera.width as usize, camera.height as usize) {
             return Err(format!(
                 "reference is {}×{}, the scene renders {}×{}",
@@ -145,7 +146,7 @@ pub(super) fn run_compare(args: &CompareArgs) -> Result<(), String> {
         }
         eprintln!("{name}: rendering {} s", args.seconds);
         let settings = RenderSettings {
-            integrator: options.integrator(method, &prepared.plan),
+            integrator: options.integrator(method, &session.plan),
             budget: Budget::Seconds(args.seconds),
             seed: options.seed,
             train_seconds: options.train_seconds,
@@ -154,14 +155,14 @@ pub(super) fn run_compare(args: &CompareArgs) -> Result<(), String> {
             training_share: options.train_share(method),
         };
         let (image, statistics, checkpoints) =
-            pool.install(|| render_prepared(&mut prepared, &settings, Some(&reference), &report_times, true))?;
+            pool.install(|| render_session(&mut session, &settings, Some(&reference), &report_times, true))?;
         let image_path = args.out.join(format!("{}.exr", name.replace([':', '+'], "-")));
         write_outputs(&image_path, &image, false)?;
-        let json = statistics_json(method, &prepared, &statistics, &image, pool.current_num_threads());
+        let json = statistics_json(method, &session, &statistics, &image, pool.current_num_threads());
         std::fs::write(sibling(&image_path, "json"), serde_json::to_string_pretty(&json).unwrap_or_default())
             .map_err(|e| format!("cannot write statistics: {e}"))?;
         rows.extend(crate::report::checkpoint_rows(&name, &checkpoints));
-        learned_bytes.push(prepared.learned_bytes(method));
+        learned_bytes.push(session.learned_bytes(method));
         names.push(name);
     }
     crate::report::write_csv(&args.out.join("compare.csv"), &rows)?;

@@ -8,9 +8,9 @@ use clap::Args;
 use guiding_core::{EnvTileGuide, LightGuide};
 
 use super::options::parse_patches;
-use super::prepare::environment_tiles;
 use crate::directional_guide::{DirectionalGuide, GuideStructure};
 use crate::scene::Scene;
+use crate::session::environment_tiles;
 
 /// Which guide the files hold.
 #[derive(Clone, Copy, Debug, PartialEq)]

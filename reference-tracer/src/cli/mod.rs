@@ -1,22 +1,21 @@
 //! The `lodestar` command line: the commands, one file each, and what they share:
-//! the tracing options and their translation into settings, the prepared scene with
-//! every learner (the composition root), the progressive render and its outputs.
+//! the tracing options and their translation into settings, the progressive
+//! render and its outputs. The session they render (scene, learners, backends) is
+//! [`crate::session`].
 
 mod compare;
 mod convert;
 mod merge_guides;
 mod options;
 mod outputs;
-mod prepare;
 mod progressive;
 mod reference;
 mod render;
 mod settings;
 
-pub use options::{TraceOptions, GUIDE_SHARE_COST};
+pub use options::{GuideShare, TraceOptions, GUIDE_SHARE_COST};
 pub use outputs::statistics_json;
-pub use prepare::{prepare, prepare_with_lights, Device, GuideShare, LightRequest, Prepared, SetupTimes};
-pub use progressive::render_prepared;
+pub use progressive::render_session;
 
 use clap::{Parser, Subcommand};
 

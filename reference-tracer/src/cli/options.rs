@@ -4,7 +4,7 @@ use crate::scene_intersector::IntersectorChoice;
 use clap::Args;
 use guiding_core::{HemisphereMapping, IntegralEstimator, LearningRate, LightUpdateRule};
 
-use super::prepare::{Device, GuideShare};
+use crate::backend::Device;
 use crate::directional_guide::GuideStructure;
 use crate::film::Combine;
 use crate::integrator::{EnvironmentSampling, LightSelection, Method};
@@ -21,8 +21,28 @@ pub(super) fn parse_resolution(s: &str) -> Result<[u32; 2], String> {
     Ok([width, height])
 }
 
-/// The learned guide share's default cost of guiding (`--guide-share-cost`).
-pub const GUIDE_SHARE_COST: f32 = 0.3;
+pub use crate::session::GUIDE_SHARE_COST;
+
+/// How the directional guide's share of the scattering is set (`--guide-share`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum GuideShare {
+    /// `--p-guide` at every guided vertex.
+    #[default]
+    Fixed,
+    /// Learned per region, up to `--p-guide`.
+    Learned,
+}
+
+impl GuideShare {
+    /// Parses `fixed` or `learned`.
+    pub fn from_name(name: &str) -> Result<Self, String> {
+        match name {
+            "fixed" => Ok(GuideShare::Fixed),
+            "learned" => Ok(GuideShare::Learned),
+            _ => Err(format!("unknown guide share `{name}` (fixed, learned)")),
+        }
+    }
+}
 
 /// Options shared by every command that traces paths.
 #[derive(Debug, Args, Clone)]

@@ -2,11 +2,11 @@
 
 use std::path::{Path, PathBuf};
 
-use super::prepare::Prepared;
 use super::progressive::describe_shares;
 use crate::integrator::Method;
 use crate::output::{write_exr, write_pfm, write_png, Image};
 use crate::render::RenderStatistics;
+use crate::session::Session;
 
 pub(super) fn sibling(path: &Path, extension: &str) -> PathBuf {
     path.with_extension(extension)
@@ -27,7 +27,7 @@ pub(super) fn write_outputs(out: &Path, image: &Image, pfm: bool) -> Result<(), 
 /// The statistics JSON written beside every render.
 pub fn statistics_json(
     method: Method,
-    prepared: &Prepared,
+    session: &Session,
     statistics: &RenderStatistics,
     image: &Image,
     threads: usize,
@@ -35,7 +35,7 @@ pub fn statistics_json(
     let c = &statistics.counters;
     let seconds = statistics.render_seconds.max(1e-9);
     let mean = image.mean();
-    let guide = prepared.guide.as_ref().filter(|_| method.uses_guide()).map(|g| {
+    let guide = session.learners.guide.as_ref().filter(|_| method.uses_guide()).map(|g| {
         let s = g.stats();
         serde_json::json!({
             "structure": g.structure().name(),
@@ -49,7 +49,7 @@ pub fn statistics_json(
             "epochs": s.epochs,
         })
     });
-    let light_guide = prepared.light_guide.as_ref().map(|g| {
+    let light_guide = session.learners.light_guide.as_ref().map(|g| {
         serde_json::json!({
             "cells": g.resolution(),
             "lights": g.light_count(),
@@ -57,13 +57,13 @@ pub fn statistics_json(
             "rejected_updates": g.rejected_updates(),
         })
     });
-    let gate = prepared.gate.as_ref().map(|g| {
+    let gate = session.learners.gate.as_ref().map(|g| {
         serde_json::json!({
             "cells": g.resolution(),
             "memory_bytes": g.memory_bytes(),
         })
     });
-    let environment_guide = prepared.environment_guide.as_ref().map(|g| {
+    let environment_guide = session.learners.environment_guide.as_ref().map(|g| {
         serde_json::json!({
             "cells": g.resolution(),
             "tiles": g.tiles().tiles(),
@@ -74,11 +74,11 @@ pub fn statistics_json(
         })
     });
     serde_json::json!({
-        "scene": prepared.scene.path.display().to_string(),
+        "scene": session.scene.path.display().to_string(),
         "method": method.name(),
-        "plan": prepared.plan.describe(),
-        "learned": prepared.guide.as_ref().filter(|_| method.uses_guide()).map(|g| g.describe()),
-        "shares": describe_shares(prepared, method),
+        "plan": session.plan.describe(),
+        "learned": session.learners.guide.as_ref().filter(|_| method.uses_guide()).map(|g| g.describe()),
+        "shares": describe_shares(session, method),
         "light_guide": light_guide,
         "next_event_gate": gate,
         "environment_guide": environment_guide,
@@ -98,9 +98,9 @@ pub fn statistics_json(
         "rays_per_second": c.rays as f64 / seconds,
         "mean_radiance": [mean.x, mean.y, mean.z],
         "time": {
-            "load_seconds": prepared.times.load,
-            "bvh_seconds": prepared.times.bvh,
-            "guide_build_seconds": prepared.times.guide,
+            "load_seconds": session.times.load,
+            "bvh_seconds": session.times.bvh,
+            "guide_build_seconds": session.times.guide,
             "render_seconds": statistics.render_seconds,
             "guide_rebuild_seconds": statistics.guide_rebuild_seconds,
             // Thread-seconds in guide calls (locate, estimate, sample, pdf, update),
@@ -109,7 +109,7 @@ pub fn statistics_json(
             "threads": threads,
         },
         "guide": guide,
-        "warnings": prepared.scene.warnings,
+        "warnings": session.scene.warnings,
         "pass_means": statistics.pass_means,
     })
 }

@@ -1,14 +1,14 @@
-//! Rendering a prepared scene progressively: the thread pool, the progress bar and the
+//! Rendering a session scene progressively: the thread pool, the progress bar and the
 //! error-against-time checkpoints.
 
 use indicatif::{ProgressBar, ProgressStyle};
 
-use super::prepare::Prepared;
 use crate::integrator::Method;
 use crate::metrics::image_error;
 use crate::output::Image;
 use crate::render::{Budget, RenderSettings, RenderStatistics};
 use crate::report::Checkpoint;
+use crate::session::Session;
 
 pub(super) fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool, String> {
     let mut builder = rayon::ThreadPoolBuilder::new();
@@ -33,11 +33,11 @@ pub(super) fn progress_bar(budget: Budget) -> ProgressBar {
     bar
 }
 
-/// Renders a prepared scene, recording the error against `reference` after passes
+/// Renders a session scene, recording the error against `reference` after passes
 /// 1, 2, 4, 8, …, after the first pass to end at or past each of `report_times`
 /// (seconds), and after the last.
-pub fn render_prepared(
-    prepared: &mut Prepared,
+pub fn render_session(
+    session: &mut Session,
     settings: &RenderSettings,
     reference: Option<&Image>,
     report_times: &[f64],
@@ -46,7 +46,7 @@ pub fn render_prepared(
     let bar = if show_progress { progress_bar(settings.budget) } else { ProgressBar::hidden() };
     let mut checkpoints = Vec::new();
     let mut previous_seconds = 0.0;
-    let (image, statistics) = prepared.render(settings, |progress| {
+    let (image, statistics) = session.render(settings, |progress| {
         match settings.budget {
             Budget::SamplesPerPixel(_) => bar.set_position(progress.passes as u64),
             Budget::Seconds(_) => {
@@ -86,13 +86,16 @@ pub fn render_prepared(
 }
 
 /// Where the learned shares use their strategies: cells with a share above 0 of each grid.
-pub(super) fn describe_shares(prepared: &Prepared, method: Method) -> Option<String> {
+pub(super) fn describe_shares(session: &Session, method: Method) -> Option<String> {
     if !method.uses_guide() {
         return None;
     }
-    let guide =
-        prepared.guide_shares.as_ref().map(|s| format!("guide in {} of {} cells", s.cells_in_use(), s.cell_count()));
-    let focal = prepared.focal_guide.as_ref().map(|f| {
+    let guide = session
+        .learners
+        .guide_shares
+        .as_ref()
+        .map(|s| format!("guide in {} of {} cells", s.cells_in_use(), s.cell_count()));
+    let focal = session.learners.focal_guide.as_ref().map(|f| {
         let (used, cells) = f.selection_cells();
         format!("focal boxes ({}) in {used} of {cells} cells", f.boxes().len())
     });

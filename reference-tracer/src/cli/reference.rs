@@ -8,12 +8,12 @@ use guiding_core::HemisphereGridSettings;
 
 use super::options::{parse_method, parse_resolution};
 use super::outputs::{sibling, statistics_json, write_outputs};
-use super::prepare::{prepare_with_lights, LightRequest};
-use super::progressive::{render_prepared, thread_pool};
+use super::progressive::{render_session, thread_pool};
 use crate::film::Combine;
 use crate::integrator::{EnvironmentSampling, IntegratorSettings, LightSelection, Method};
 use crate::render::{Budget, RenderSettings};
 use crate::schedule::Schedule;
+use crate::session::{prepare_with_lights, LightRequest};
 
 #[derive(Debug, Args)]
 pub(super) struct ReferenceArgs {
@@ -55,8 +55,8 @@ pub(super) fn run_reference(args: &ReferenceArgs) -> Result<(), String> {
     let pool = thread_pool(args.threads)?;
     let guide = args.integrator.uses_guide().then(|| HemisphereGridSettings::default().into());
     let lights = LightRequest::new(Some(args.light_selection), Some(args.env_sampling), args.integrator.uses_nee());
-    let mut prepared = prepare_with_lights(&args.scene, IntersectorChoice::fastest(), guide, lights)?;
-    prepared.resize(args.resolution);
+    let mut session = prepare_with_lights(&args.scene, IntersectorChoice::fastest(), guide, lights)?;
+    session.resize(args.resolution);
     let integrator = IntegratorSettings {
         method: args.integrator,
         light_selection: args.light_selection,
@@ -72,9 +72,9 @@ pub(super) fn run_reference(args: &ReferenceArgs) -> Result<(), String> {
         combine: Combine::default(),
         training_share: crate::schedule::DEFAULT_TRAINING_SHARE,
     };
-    let (image, statistics, _) = pool.install(|| render_prepared(&mut prepared, &settings, None, &[], true))?;
+    let (image, statistics, _) = pool.install(|| render_session(&mut session, &settings, None, &[], true))?;
     write_outputs(&args.out, &image, args.pfm)?;
-    let json = statistics_json(args.integrator, &prepared, &statistics, &image, pool.current_num_threads());
+    let json = statistics_json(args.integrator, &session, &statistics, &image, pool.current_num_threads());
     std::fs::write(sibling(&args.out, "json"), serde_json::to_string_pretty(&json).unwrap_or_default())
         .map_err(|e| format!("cannot write statistics: {e}"))?;
     eprintln!(

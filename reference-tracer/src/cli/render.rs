@@ -7,14 +7,14 @@ use guiding_core::{EnvTileGuide, LightGuide};
 
 use super::options::{parse_method, TraceOptions};
 use super::outputs::{sibling, statistics_json, write_outputs};
-use super::prepare::{prepare_with_lights, Prepared};
-use super::progressive::{describe_shares, render_prepared, thread_pool};
+use super::progressive::{describe_shares, render_session, thread_pool};
 use crate::animation::frame_seed;
 use crate::directional_guide::DirectionalGuide;
 use crate::integrator::Method;
 use crate::output::read_image;
 use crate::output::Image;
 use crate::render::{Budget, RenderSettings, RenderStatistics};
+use crate::session::{prepare_with_lights, Session};
 
 #[derive(Debug, Args)]
 pub(super) struct RenderArgs {
@@ -97,9 +97,9 @@ pub(super) fn run_render(args: &RenderArgs) -> Result<(), String> {
         None => None,
     };
     let pool = thread_pool(options.threads)?;
-    let (mut prepared, settings) = prepare_render(args)?;
+    let (mut session, settings) = prepare_render(args)?;
     if let Some(reference) = &reference {
-        let camera = &prepared.scene.camera;
+        let camera = &session.scene.camera;
         if (reference.width, reference.height) != (camera.width as usize, camera.height as usize) {
             return Err(format!(
                 "reference is {}×{}, the scene renders {}×{}",
@@ -107,10 +107,10 @@ pub(super) fn run_render(args: &RenderArgs) -> Result<(), String> {
             ));
         }
     }
-    check_save_targets(args, &prepared)?;
+    check_save_targets(args, &session)?;
     let (image, statistics, checkpoints) =
-        pool.install(|| render_prepared(&mut prepared, &settings, reference.as_ref(), &[], true))?;
-    write_image_and_statistics(args, &args.out, &prepared, &statistics, &image, pool.current_num_threads())?;
+        pool.install(|| render_session(&mut session, &settings, reference.as_ref(), &[], true))?;
+    write_image_and_statistics(args, &args.out, &session, &statistics, &image, pool.current_num_threads())?;
     if reference.is_some() {
         let rows = crate::report::checkpoint_rows(args.integrator.name(), &checkpoints);
         crate::report::write_csv(&sibling(&args.out, "csv"), &rows)?;
@@ -137,13 +137,13 @@ pub(super) fn run_render(args: &RenderArgs) -> Result<(), String> {
             statistics.kept_paths_per_second()
         );
     }
-    if let Some(guide) = prepared.guide.as_ref().filter(|_| args.integrator.uses_guide()) {
+    if let Some(guide) = session.learners.guide.as_ref().filter(|_| args.integrator.uses_guide()) {
         eprintln!("learned: {}", guide.describe());
     }
-    if let Some(shares) = describe_shares(&prepared, args.integrator) {
+    if let Some(shares) = describe_shares(&session, args.integrator) {
         eprintln!("shares: {shares}");
     }
-    save_guides(args, &prepared)?;
+    save_guides(args, &session)?;
     eprintln!("wrote {}", args.out.display());
     Ok(())
 }
@@ -154,23 +154,22 @@ fn run_animation(args: &RenderArgs) -> Result<(), String> {
         return Err(format!("--reference {}: an animation (--frames above 1) has no one reference", path.display()));
     }
     let pool = thread_pool(args.options.threads)?;
-    let (mut prepared, settings) = prepare_render(args)?;
-    if prepared.scene.camera_keyframes.is_empty() {
+    let (mut session, settings) = prepare_render(args)?;
+    if session.scene.camera_keyframes.is_empty() {
         eprintln!("warning: {}: the camera has no keyframes: every frame shows the same view", args.scene.display());
     }
-    check_save_targets(args, &prepared)?;
+    check_save_targets(args, &session)?;
     let coherent = args.frame_coherence;
     for frame in 0..args.frames {
         if frame > 0 && !coherent {
             // Empty learners, as a separate render would start from.
-            prepared = prepare_render(args)?.0;
+            session = prepare_render(args)?.0;
         }
-        prepared.scene.camera = prepared.scene.frame_camera(frame, args.frames);
+        session.scene.camera = session.scene.frame_camera(frame, args.frames);
         let frame_settings = RenderSettings { seed: frame_seed(settings.seed, frame, coherent), ..settings };
-        let (image, statistics, _) =
-            pool.install(|| render_prepared(&mut prepared, &frame_settings, None, &[], true))?;
+        let (image, statistics, _) = pool.install(|| render_session(&mut session, &frame_settings, None, &[], true))?;
         let out = frame_path(&args.out, frame);
-        write_image_and_statistics(args, &out, &prepared, &statistics, &image, pool.current_num_threads())?;
+        write_image_and_statistics(args, &out, &session, &statistics, &image, pool.current_num_threads())?;
         eprintln!(
             "frame {frame}: {} spp in {:.2} s; wrote {}",
             statistics.passes,
@@ -178,20 +177,20 @@ fn run_animation(args: &RenderArgs) -> Result<(), String> {
             out.display()
         );
     }
-    save_guides(args, &prepared)
+    save_guides(args, &session)
 }
 
 /// IMAGE.exr (with its .png, and .pfm when asked) and IMAGE.json at `out`.
 fn write_image_and_statistics(
     args: &RenderArgs,
     out: &Path,
-    prepared: &Prepared,
+    session: &Session,
     statistics: &RenderStatistics,
     image: &Image,
     threads: usize,
 ) -> Result<(), String> {
     write_outputs(out, image, args.pfm)?;
-    let json = statistics_json(args.integrator, prepared, statistics, image, threads);
+    let json = statistics_json(args.integrator, session, statistics, image, threads);
     let json_path = sibling(out, "json");
     std::fs::write(&json_path, serde_json::to_string_pretty(&json).unwrap_or_default())
         .map_err(|e| format!("cannot write {}: {e}", json_path.display()))
@@ -208,7 +207,7 @@ fn frame_path(out: &Path, frame: u32) -> PathBuf {
 }
 
 /// The scene with its intersector, plan and learners, and the render's settings.
-fn prepare_render(args: &RenderArgs) -> Result<(Prepared, RenderSettings), String> {
+fn prepare_render(args: &RenderArgs) -> Result<(Session, RenderSettings), String> {
     let options = &args.options;
     let guide = options.directional_guide(args.integrator, options.single_guide()?)?;
     let budget = match (args.spp, args.seconds) {
@@ -218,28 +217,28 @@ fn prepare_render(args: &RenderArgs) -> Result<(Prepared, RenderSettings), Strin
         (None, Some(s)) => return Err(format!("--seconds {s} must be positive")),
         (None, None) => Budget::SamplesPerPixel(64),
     };
-    let mut prepared =
+    let mut session =
         prepare_with_lights(&args.scene, options.intersector, guide, options.light_request(args.integrator)?)?;
-    prepared.resize(options.resolution);
+    session.resize(options.resolution);
     if let Some(path) = &args.load_guide {
-        let Some(built) = &prepared.guide else {
+        let Some(built) = &session.learners.guide else {
             return Err(format!("--load-guide {}: this render has no directional guide", path.display()));
         };
         let bytes = std::fs::read(path).map_err(|e| format!("--load-guide {}: {e}", path.display()))?;
         let loaded = DirectionalGuide::from_bytes(built.structure(), &bytes)
             .map_err(|e| format!("--load-guide {}: {e}", path.display()))?;
-        prepared.guide = Some(loaded);
+        session.learners.guide = Some(loaded);
     }
-    load_sampling_guides(args, &mut prepared)?;
-    prepared.device = options.device;
-    prepared.focal_settings = options.focal_settings(args.integrator)?;
-    prepared.guide_share_cost = options.guide_share_cost;
-    for warning in &prepared.scene.warnings {
+    load_sampling_guides(args, &mut session)?;
+    session.device = options.device;
+    session.learners.focal_settings = options.focal_settings(args.integrator)?;
+    session.learners.guide_share_cost = options.guide_share_cost;
+    for warning in &session.scene.warnings {
         eprintln!("warning: {}: {warning}", args.scene.display());
     }
-    eprintln!("plan: {}", prepared.plan.describe());
+    eprintln!("plan: {}", session.plan.describe());
     let settings = RenderSettings {
-        integrator: options.integrator(args.integrator, &prepared.plan),
+        integrator: options.integrator(args.integrator, &session.plan),
         budget,
         seed: options.seed,
         train_seconds: options.train_seconds,
@@ -247,19 +246,19 @@ fn prepare_render(args: &RenderArgs) -> Result<(Prepared, RenderSettings), Strin
         combine: options.combine,
         training_share: options.train_share(args.integrator),
     };
-    Ok((prepared, settings))
+    Ok((session, settings))
 }
 
 /// `--save-guide`, `--save-light-guide` and `--save-env-guide`.
-fn save_guides(args: &RenderArgs, prepared: &Prepared) -> Result<(), String> {
+fn save_guides(args: &RenderArgs, session: &Session) -> Result<(), String> {
     if let Some(path) = &args.save_guide {
-        let Some(guide) = &prepared.guide else {
+        let Some(guide) = &session.learners.guide else {
             return Err(format!("--save-guide {}: {NO_GUIDE}", path.display()));
         };
         std::fs::write(path, guide.to_bytes()).map_err(|e| format!("--save-guide {}: {e}", path.display()))?;
         eprintln!("saved the guide to {}", path.display());
     }
-    save_sampling_guides(args, prepared)
+    save_sampling_guides(args, session)
 }
 
 /// Why a render has no directional guide to save.
@@ -272,11 +271,11 @@ const NO_ENV_GUIDE: &str = "this render samples no environment by tiles (see the
 /// `--load-light-guide` and `--load-env-guide`: each file is read and merged into the
 /// guide the plan built, which is still empty: the merge is exact, and checks that the
 /// file learned the same scene with the same settings.
-fn load_sampling_guides(args: &RenderArgs, prepared: &mut Prepared) -> Result<(), String> {
+fn load_sampling_guides(args: &RenderArgs, session: &mut Session) -> Result<(), String> {
     let read = |flag: &str, path: &Path| std::fs::read(path).map_err(|e| format!("{flag} {}: {e}", path.display()));
     if let Some(path) = &args.load_light_guide {
         let flag = "--load-light-guide";
-        let Some(built) = prepared.light_guide.as_mut() else {
+        let Some(built) = session.learners.light_guide.as_mut() else {
             return Err(format!("{flag} {}: {NO_LIGHT_GUIDE}", path.display()));
         };
         let loaded =
@@ -285,7 +284,7 @@ fn load_sampling_guides(args: &RenderArgs, prepared: &mut Prepared) -> Result<()
     }
     if let Some(path) = &args.load_env_guide {
         let flag = "--load-env-guide";
-        let Some(built) = prepared.environment_guide.as_mut() else {
+        let Some(built) = session.learners.environment_guide.as_mut() else {
             return Err(format!("{flag} {}: {NO_ENV_GUIDE}", path.display()));
         };
         let bytes = read(flag, path)?;
@@ -298,11 +297,11 @@ fn load_sampling_guides(args: &RenderArgs, prepared: &mut Prepared) -> Result<()
 
 /// The `--save-*` flags, checked before rendering so that a long render does not end
 /// in an error: each must name a guide this render builds, in a folder that exists.
-fn check_save_targets(args: &RenderArgs, prepared: &Prepared) -> Result<(), String> {
+fn check_save_targets(args: &RenderArgs, session: &Session) -> Result<(), String> {
     let targets = [
-        ("--save-guide", &args.save_guide, prepared.guide.is_some() && args.integrator.uses_guide(), NO_GUIDE),
-        ("--save-light-guide", &args.save_light_guide, prepared.light_guide.is_some(), NO_LIGHT_GUIDE),
-        ("--save-env-guide", &args.save_env_guide, prepared.environment_guide.is_some(), NO_ENV_GUIDE),
+        ("--save-guide", &args.save_guide, session.learners.guide.is_some() && args.integrator.uses_guide(), NO_GUIDE),
+        ("--save-light-guide", &args.save_light_guide, session.learners.light_guide.is_some(), NO_LIGHT_GUIDE),
+        ("--save-env-guide", &args.save_env_guide, session.learners.environment_guide.is_some(), NO_ENV_GUIDE),
     ];
     for (flag, path, built, missing) in targets {
         let Some(path) = path else { continue };
@@ -318,7 +317,7 @@ fn check_save_targets(args: &RenderArgs, prepared: &Prepared) -> Result<(), Stri
 }
 
 /// `--save-light-guide` and `--save-env-guide`.
-fn save_sampling_guides(args: &RenderArgs, prepared: &Prepared) -> Result<(), String> {
+fn save_sampling_guides(args: &RenderArgs, session: &Session) -> Result<(), String> {
     let write = |flag: &str, path: &Path, bytes: Option<Vec<u8>>, missing: &str| {
         let bytes = bytes.ok_or_else(|| format!("{flag} {}: {missing}", path.display()))?;
         std::fs::write(path, bytes).map_err(|e| format!("{flag} {}: {e}", path.display()))?;
@@ -330,10 +329,20 @@ fn save_sampling_guides(args: &RenderArgs, prepared: &Prepared) -> Result<(), St
         Ok::<(), String>(())
     };
     if let Some(path) = &args.save_light_guide {
-        write("--save-light-guide", path, prepared.light_guide.as_ref().map(LightGuide::to_bytes), NO_LIGHT_GUIDE)?;
+        write(
+            "--save-light-guide",
+            path,
+            session.learners.light_guide.as_ref().map(LightGuide::to_bytes),
+            NO_LIGHT_GUIDE,
+        )?;
     }
     if let Some(path) = &args.save_env_guide {
-        write("--save-env-guide", path, prepared.environment_guide.as_ref().map(EnvTileGuide::to_bytes), NO_ENV_GUIDE)?;
+        write(
+            "--save-env-guide",
+            path,
+            session.learners.environment_guide.as_ref().map(EnvTileGuide::to_bytes),
+            NO_ENV_GUIDE,
+        )?;
     }
     Ok(())
 }

@@ -7,12 +7,14 @@ use guiding_core::{
     UpdateRule,
 };
 
+use super::options::GuideShare;
 use super::options::{GuideChoice, TraceOptions};
-use super::prepare::{Device, GuideShare, LightRequest};
+use crate::backend::Device;
 use crate::directional_guide::{DirectionalGuideSettings, GuideStructure};
 use crate::integrator::{IntegratorSettings, Method};
 use crate::plan::GuidePlan;
 use crate::schedule::Schedule;
+use crate::session::LightRequest;
 
 impl TraceOptions {
     /// The settings of `structure` from the options (budget, update rule and the

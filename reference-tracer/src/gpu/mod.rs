@@ -48,6 +48,7 @@
 //! masks, plastic, an image environment) are refused with a message naming what is
 //! missing.
 
+mod backend;
 mod context;
 mod guide_buffers;
 mod params;
@@ -61,6 +62,7 @@ use glam::Vec3;
 use guiding_core::{GaussianMixture, Guide, IrradianceVolume};
 use wgpu::util::DeviceExt;
 
+pub use backend::GpuBackend;
 pub use context::GpuContext;
 use guide_buffers::GuideBuffers;
 pub use guide_buffers::{store_learned, GpuGuide};

@@ -161,7 +161,7 @@ pub(super) fn method_code(method: Method) -> u32 {
         Method::Nee => 1,
         Method::Guided => 2,
         Method::GuidedNee => 3,
-        // Refused before the GPU is reached (`Prepared::render`).
+        // Refused before the GPU is reached (`Session::render`).
         Method::Light | Method::LightGuided | Method::Bdpt | Method::BdptGuided | Method::Vpl | Method::VplGuided => {
             unreachable!("the GPU tracer has no light subpaths")
         }
