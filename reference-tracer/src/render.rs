@@ -219,6 +219,8 @@ pub fn render<I: Intersector, G: Guide>(
     // Splat images and scratch space of light tracing and bdpt, one per group, kept
     // across passes.
     let mut splat_groups: Vec<SplatGroup<G::Region>> = Vec::new();
+    // What the tracer derives from the scene, once; each pass adds its learners.
+    let scene_tracer = PathTracer::<I, G>::new(scene, intersector, settings.integrator);
     loop {
         let pass = traced;
         traced += 1;
@@ -226,19 +228,17 @@ pub fn render<I: Intersector, G: Guide>(
             learn: settings.integrator.learn && (settings.schedule == Schedule::Online || training.learning()),
             ..settings.integrator
         };
-        let tracer = PathTracer::new(
-            scene,
-            intersector,
-            guide.as_deref(),
-            focal.as_deref(),
-            light_guide.as_deref(),
-            environment_guide.as_deref(),
-            integrator,
-        )
-        .with_guide_shares(guide_shares.as_deref())
-        .with_gate(gate.as_deref())
-        .with_importance_guide(importance.as_deref())
-        .with_connection_threshold(connection_threshold(settings.integrator.connection_roulette, &statistics));
+        let tracer = scene_tracer
+            .clone()
+            .with_settings(integrator)
+            .with_guide(guide.as_deref())
+            .with_focal_guide(focal.as_deref())
+            .with_light_guide(light_guide.as_deref())
+            .with_environment_guide(environment_guide.as_deref())
+            .with_guide_shares(guide_shares.as_deref())
+            .with_gate(gate.as_deref())
+            .with_importance_guide(importance.as_deref())
+            .with_connection_threshold(connection_threshold(settings.integrator.connection_roulette, &statistics));
         let pass_seed = pass_seed(settings.seed, pass);
         let (counters, pass_sum) = if settings.integrator.method.splats() {
             splat_pass(&tracer, &mut film, &mut splat_groups, pass_seed)

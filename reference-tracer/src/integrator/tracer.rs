@@ -141,6 +141,14 @@ pub struct PathTracer<'a, I: Intersector, G: Guide> {
     pub(super) importance: Option<&'a G>,
 }
 
+// Every field is a reference or a number: a copy costs nothing, and the guides it
+// borrows need not be cloneable.
+impl<I: Intersector, G: Guide> Clone for PathTracer<'_, I, G> {
+    fn clone(&self) -> Self {
+        Self { ..*self }
+    }
+}
+
 /// The surface a path reached, built once per hit: where it is, which way it faces,
 /// what it is made of there, and the frame it shades in as seen from `wo`.
 pub(super) struct SurfaceInteraction {
@@ -177,18 +185,13 @@ pub(super) fn nee_partner_pdf(bsdf_pdf: f32, guide_share: f32, focal_share: f32)
 pub(super) const MAX_MASK_CROSSINGS: u32 = 64;
 
 impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
-    /// A tracer with the learners its method uses (`render::Learners::used_by` decides
-    /// which): it uses every one it is given, `guide` at the guided vertices,
-    /// `light_guide` to select lights, `environment_guide` to sample the environment.
-    pub fn new(
-        scene: &'a Scene,
-        intersector: &'a I,
-        guide: Option<&'a G>,
-        focal: Option<&'a FocalGuide>,
-        light_guide: Option<&'a LightGuide>,
-        environment_guide: Option<&'a EnvTileGuide>,
-        settings: IntegratorSettings,
-    ) -> Self {
+    /// A tracer of `scene` with no learner: [`with_guide`](Self::with_guide) and the other
+    /// `with_*` builders add the ones its method uses (`render::Learners::used_by`
+    /// decides which), and it uses every one it is given: the guide at the guided
+    /// vertices, the light guide to select lights, the environment guide to sample the
+    /// environment. What it derives from the scene (its size, its lights, its masks) is
+    /// computed here, once: a render builds one tracer and copies it for every pass.
+    pub fn new(scene: &'a Scene, intersector: &'a I, settings: IntegratorSettings) -> Self {
         let (low, high) = scene.bounds();
         let ray_epsilon = 1e-5 * (high - low).length().max(f32::MIN_POSITIVE);
         let environment_choice = match (scene.environment.is_some(), scene.lights.is_empty()) {
@@ -196,25 +199,54 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             (true, false) => 0.5,
             (false, _) => 0.0,
         };
-        let masks = scene.has_masks();
-        let carries_path = guide.is_some_and(|g| g.update_rule().integral == IntegralEstimator::PathContinuation);
         Self {
             scene,
             intersector,
-            guide,
-            focal,
+            guide: None,
+            focal: None,
             guide_shares: None,
-            light_guide,
+            light_guide: None,
             gate: None,
-            environment_guide,
+            environment_guide: None,
             settings,
             ray_epsilon,
             environment_choice,
-            masks,
-            carries_path,
+            masks: scene.has_masks(),
+            carries_path: false,
             connection_threshold: 0.0,
             importance: None,
         }
+    }
+
+    /// The tracer with the directional guide Q, sampled at the guided vertices.
+    pub fn with_guide(mut self, guide: Option<&'a G>) -> Self {
+        self.guide = guide;
+        self.carries_path = guide.is_some_and(|g| g.update_rule().integral == IntegralEstimator::PathContinuation);
+        self
+    }
+
+    /// The tracer with the focal guide (guided methods with a focal probability above 0).
+    pub fn with_focal_guide(mut self, focal: Option<&'a FocalGuide>) -> Self {
+        self.focal = focal;
+        self
+    }
+
+    /// The tracer with the learned light selection.
+    pub fn with_light_guide(mut self, light_guide: Option<&'a LightGuide>) -> Self {
+        self.light_guide = light_guide;
+        self
+    }
+
+    /// The tracer with the learned environment sampling.
+    pub fn with_environment_guide(mut self, environment_guide: Option<&'a EnvTileGuide>) -> Self {
+        self.environment_guide = environment_guide;
+        self
+    }
+
+    /// The tracer with other settings (a pass that learns or not), the same scene.
+    pub fn with_settings(mut self, settings: IntegratorSettings) -> Self {
+        self.settings = settings;
+        self
     }
 
     /// The settings it traces with.

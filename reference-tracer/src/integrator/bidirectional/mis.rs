@@ -215,8 +215,7 @@ mod tests {
             let intersector = SceneIntersector::build(&scene.triangles, IntersectorChoice::default()).unwrap();
             let settings =
                 IntegratorSettings { method: Method::Bdpt, max_depth: 8, rr_depth: 64, ..Default::default() };
-            let tracer: PathTracer<'_, _, HemisphereGrid> =
-                PathTracer::new(&scene, &intersector, None, None, None, None, settings);
+            let tracer: PathTracer<'_, _, HemisphereGrid> = PathTracer::new(&scene, &intersector, settings);
             weights_sum_to_one(&tracer, name);
         }
     }
@@ -241,7 +240,8 @@ mod tests {
             };
             // Learn for a few passes, so the guide is far from uniform.
             for pass in 0..4u64 {
-                let tracer = PathTracer::new(&scene, &intersector, Some(&grid), None, None, None, settings)
+                let tracer = PathTracer::new(&scene, &intersector, settings)
+                    .with_guide(Some(&grid))
                     .with_importance_guide(Some(&importance));
                 let mut scratch = BidirectionalScratch::default();
                 let mut image = vec![Vec3::ZERO; 256];
@@ -259,7 +259,8 @@ mod tests {
                 assert!(updates > 1000, "{name}: {label} learned {updates} updates");
             }
             let frozen = IntegratorSettings { learn: false, ..settings };
-            let tracer = PathTracer::new(&scene, &intersector, Some(&grid), None, None, None, frozen)
+            let tracer = PathTracer::new(&scene, &intersector, frozen)
+                .with_guide(Some(&grid))
                 .with_importance_guide(Some(&importance));
             weights_sum_to_one(&tracer, &format!("{name}, guided"));
         }
