@@ -243,7 +243,7 @@ pub fn render<I: Intersector, G: Guide>(
         let (counters, pass_sum) = if settings.integrator.method.splats() {
             splat_pass(&tracer, &mut film, &mut splat_groups, pass_seed)
         } else if settings.integrator.method.gathers_virtual_lights() {
-            vpl_pass(&tracer, scene, &mut film, pass_seed)
+            vpl_pass(&tracer, &mut film, pass_seed)
         } else {
             camera_pass(&tracer, &mut film, pass_seed)
         };
@@ -345,7 +345,6 @@ fn camera_pass<I: Intersector, G: Guide>(
 /// vpl-guided's learning passes W then learns what each light gave the image.
 fn vpl_pass<I: Intersector, G: Guide>(
     tracer: &PathTracer<'_, I, G>,
-    scene: &Scene,
     film: &mut Film,
     pass_seed: u64,
 ) -> (PathCounters, [f64; 3]) {
@@ -353,8 +352,7 @@ fn vpl_pass<I: Intersector, G: Guide>(
     let mut light_rng = pixel_rng(pass_seed, u64::MAX);
     let mut light_counters = PathCounters::default();
     let vpls = tracer.virtual_point_lights(settings.vpl_paths, &mut light_rng, &mut light_counters);
-    let (low, high) = scene.bounds();
-    let min_distance = settings.vpl_min_distance * (high - low).length();
+    let min_distance = settings.vpl_min_distance * tracer.scene_extent();
     let learning = settings.learn && tracer.importance_guide().is_some();
     // The tallies exist only where W learns: other passes gather without them.
     let total = std::sync::Mutex::new(if learning { vpls.tally() } else { Vec::new() });

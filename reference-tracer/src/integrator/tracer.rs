@@ -126,6 +126,8 @@ pub struct PathTracer<'a, I: Intersector, G: Guide> {
     /// The learned environment sampling, when `settings.environment_sampling` is `Tiles`.
     pub(super) environment_guide: Option<&'a EnvTileGuide>,
     pub(super) settings: IntegratorSettings,
+    /// The diagonal of the scene's bounds, scene units.
+    pub(super) extent: f32,
     pub(super) ray_epsilon: f32,
     pub(super) environment_choice: f32,
     /// Whether some material has an opacity texture: rays then pass through it.
@@ -193,7 +195,8 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
     /// computed here, once: a render builds one tracer and copies it for every pass.
     pub fn new(scene: &'a Scene, intersector: &'a I, settings: IntegratorSettings) -> Self {
         let (low, high) = scene.bounds();
-        let ray_epsilon = 1e-5 * (high - low).length().max(f32::MIN_POSITIVE);
+        let extent = (high - low).length();
+        let ray_epsilon = 1e-5 * extent.max(f32::MIN_POSITIVE);
         let environment_choice = match (scene.environment.is_some(), scene.lights.is_empty()) {
             (true, true) => 1.0,
             (true, false) => 0.5,
@@ -209,6 +212,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             gate: None,
             environment_guide: None,
             settings,
+            extent,
             ray_epsilon,
             environment_choice,
             masks: scene.has_masks(),
@@ -252,6 +256,11 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
     /// The settings it traces with.
     pub fn settings(&self) -> &IntegratorSettings {
         &self.settings
+    }
+
+    /// The diagonal of the scene's bounds, scene units.
+    pub fn scene_extent(&self) -> f32 {
+        self.extent
     }
 
     /// The tracer with W, the importance the light subpaths of bdpt-guided and
