@@ -465,6 +465,29 @@ fn path_continuation_targets_carry_russian_roulette() {
 }
 
 #[test]
+fn plastic_means_agree_when_the_guides_take_only_the_diffuse_lobes() {
+    // Cornell with plastic walls: the directional and the focal guide take over only the
+    // base's share of the sampling, the coat keeping the probability its BSDF gives it.
+    // The mixture must stay a density over every direction the BSDF reaches.
+    let cornell = support::repository_scene("cornell", 32, 32);
+    let mut json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&cornell).unwrap()).unwrap();
+    json["materials"]["white"] = json!({ "type": "plastic", "albedo": [0.725, 0.71, 0.68], "alpha": 0.1 });
+    json["materials"]["red"] = json!({ "type": "plastic", "albedo": [0.63, 0.065, 0.05], "alpha": 0.02 });
+    let scene = support::write_scene(cornell.parent().unwrap(), &json);
+    let reference = mean_estimate(&render_scene(&scene, settings(Method::Nee), None, 512, 21));
+    let integrator = reference_tracer::integrator::IntegratorSettings {
+        guide_probability: 0.5,
+        focal_probability: 0.3,
+        focal_learning_share: 1.0,
+        guide_diffuse_lobes: true,
+        ..settings(Method::GuidedNee)
+    };
+    let guide = HemisphereGridSettings { probe_count: Some(100), ..Default::default() };
+    let estimate = mean_estimate(&render_scene(&scene, integrator, Some(guide.into()), 256, 22));
+    support::assert_agree("guided-nee guiding the diffuse lobes vs nee", &estimate, &reference);
+}
+
+#[test]
 fn glossy_means_agree_under_either_integral_estimate() {
     // Rough metal and glass: the one-sample BSDF estimate of ∫Q fs cos replaces the sum
     // over every patch there, and must learn a guide that keeps the estimator unbiased.

@@ -228,6 +228,7 @@ impl TraceOptions {
             learned_guide_share: !light && self.guide_share() == GuideShare::Learned,
             density_weighted_learning: true,
             nee_weighs_guide: false,
+            guide_diffuse_lobes: self.guide_diffuse_lobes.unwrap_or(true),
             learn: true,
             nee_kickstart: !light && self.nee_kickstart.unwrap_or(self.without_nee_defaults(method)),
             light_selection: plan.light_selection,

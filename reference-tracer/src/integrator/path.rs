@@ -110,13 +110,19 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             // The guide's share here: fixed, or learned per region (where it learned 0 the
             // guide is not even located, except to keep learning).
             let guides_here = self.guide.is_some() && !delta && depth < settings.guide_depth;
-            let guide_share = match self.guide_shares {
-                _ if !guides_here => 0.0,
-                // Frozen, and no region gives it a share: no lookup at all.
-                Some(shares) if !learning && !shares.any() => 0.0,
-                Some(shares) => shares.share(point).min(settings.guide_probability),
-                None => settings.guide_probability,
-            };
+            // The guides take over only the part of the BSDF's sampling that spreads
+            // light (its diffuse lobes): a coat's highlight stays as likely as the BSDF
+            // alone makes it, so guiding does not double the weight of the sharp
+            // reflections of bright light it was never meant to find.
+            let guidable = if settings.guide_diffuse_lobes { material.guidable_share(shading, wo) } else { 1.0 };
+            let guide_share = guidable
+                * match self.guide_shares {
+                    _ if !guides_here => 0.0,
+                    // Frozen, and no region gives it a share: no lookup at all.
+                    Some(shares) if !learning && !shares.any() => 0.0,
+                    Some(shares) => shares.share(point).min(settings.guide_probability),
+                    None => settings.guide_probability,
+                };
             let region = match self.guide {
                 Some(guide) if guides_here && (guide_share > 0.0 || learning) => {
                     clock.time(|| guide.locate(point, normal))
@@ -150,7 +156,8 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             // The focal guide's share of the scattering here (0 where it has no boxes, and
             // left out altogether in frozen passes where no region aims at them).
             let focal = self.focal.filter(|f| !delta && if learning { !f.boxes().is_empty() } else { f.aims() });
-            let focal_share = focal.map_or(0.0, |f| f.selection_probability(point).min(settings.focal_probability));
+            let focal_share =
+                guidable * focal.map_or(0.0, |f| f.selection_probability(point).min(settings.focal_probability));
             // Learning measures the boxes' share from every direction, sampled by them or not.
             let focal = focal.filter(|_| focal_share > 0.0 || learning);
             // Next-event estimation, and the cells it and the MIS weight of emission found

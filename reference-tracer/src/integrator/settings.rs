@@ -41,6 +41,9 @@ pub struct IntegratorSettings {
     /// the image stays unbiased, and no guide lookup per light sample). The GPU tracer
     /// weighs with the guide; the CPU renders checked against its tables do too.
     pub nee_weighs_guide: bool,
+    /// Whether the guides take over only a material's diffuse lobes (a plastic's base,
+    /// its coat left to the BSDF at its own probability) or its whole sampling.
+    pub guide_diffuse_lobes: bool,
     /// Whether guided paths update the guide.
     pub learn: bool,
     /// Whether the guided method without next-event estimation (`Method::Guided`) runs
@@ -89,6 +92,7 @@ impl Default for IntegratorSettings {
             learned_guide_share: false,
             density_weighted_learning: true,
             nee_weighs_guide: false,
+            guide_diffuse_lobes: false,
             learn: true,
             nee_kickstart: false,
             light_selection: LightSelection::Power,

@@ -126,6 +126,18 @@ impl Material {
         }
     }
 
+    /// The share of this material's own sampling at `wo` that a guide may take over:
+    /// the probability of its lobes that spread light (1 for diffuse and rough metal
+    /// surfaces, the base's for plastic, 0 for delta ones). The rest, a coat's
+    /// highlight, the BSDF samples as well as anything could.
+    pub fn guidable_share(&self, shading: &ShadingFrame, wo: Vec3) -> f32 {
+        match self.surface {
+            Surface::Diffuse { .. } | Surface::Conductor { .. } => 1.0,
+            Surface::Plastic(plastic) => 1.0 - plastic.coat_probability(shading.frame.to_local(wo)),
+            Surface::Dielectric { .. } | Surface::ThinDielectric { .. } => 0.0,
+        }
+    }
+
     /// Whether the front face emits.
     pub fn is_emissive(&self) -> bool {
         self.emission.max_element() > 0.0
@@ -219,6 +231,22 @@ mod tests {
         // Seen from below the shading normal's hemisphere, the geometric normal shades.
         let grazing = Vec3::new(-0.99, 0.0, 0.1).normalize();
         assert_eq!(material.shading_frame(geometric, shading, grazing).frame.normal, geometric);
+    }
+
+    #[test]
+    fn guides_may_take_the_diffuse_share_of_the_sampling_only() {
+        let frame = ShadingFrame { frame: Frame::from_normal(Vec3::Z), geometric: Vec3::Z };
+        let wo = Vec3::new(0.6, 0.0, 0.8);
+        let diffuse = Material::new(Surface::Diffuse { albedo: Vec3::splat(0.5) }, Vec3::ZERO);
+        assert_eq!(diffuse.guidable_share(&frame, wo), 1.0);
+        let glass = Material::new(Surface::Dielectric { ior: 1.5 }, Vec3::ZERO);
+        assert_eq!(glass.guidable_share(&frame, wo), 0.0);
+        let coat = Plastic::new(Vec3::splat(0.5), 1.0, 1.5, 0.1);
+        let plastic = Material::new(Surface::Plastic(coat), Vec3::ZERO);
+        let share = plastic.guidable_share(&frame, wo);
+        assert!((share - (1.0 - coat.coat_probability(wo))).abs() < 1e-6 && share > 0.0 && share < 1.0, "{share}");
+        // At grazing angles the coat reflects more, and takes more of the sampling.
+        assert!(plastic.guidable_share(&frame, Vec3::new(0.99, 0.0, 0.14).normalize()) < share);
     }
 
     #[test]

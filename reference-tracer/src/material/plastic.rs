@@ -54,7 +54,7 @@ impl Plastic {
     }
 
     /// Probability of sampling the coat rather than the base, seen from `wo`.
-    fn coat_probability(&self, wo: Vec3) -> f32 {
+    pub(super) fn coat_probability(&self, wo: Vec3) -> f32 {
         let f = fresnel::dielectric(wo.z, self.ior);
         let base = luminance(self.albedo).max(0.0);
         let coat_weight = self.specular / (self.specular + base).max(f32::MIN_POSITIVE);
