@@ -11,7 +11,7 @@ use super::options::GuideShare;
 use super::options::{GuideChoice, TraceOptions};
 use crate::backend::Device;
 use crate::directional_guide::{DirectionalGuideSettings, GuideStructure};
-use crate::integrator::{IntegratorSettings, Method};
+use crate::integrator::{IntegratorSettings, Method, DEFAULT_GUIDE_MIN_ALPHA};
 use crate::plan::GuidePlan;
 use crate::schedule::Schedule;
 use crate::session::LightRequest;
@@ -229,6 +229,7 @@ impl TraceOptions {
             density_weighted_learning: true,
             nee_weighs_guide: false,
             guide_diffuse_lobes: self.guide_diffuse_lobes.unwrap_or(true),
+            guide_min_alpha: self.guide_min_alpha.unwrap_or(DEFAULT_GUIDE_MIN_ALPHA),
             learn: true,
             nee_kickstart: !light && self.nee_kickstart.unwrap_or(self.without_nee_defaults(method)),
             light_selection: plan.light_selection,

@@ -114,7 +114,11 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             // light (its diffuse lobes): a coat's highlight stays as likely as the BSDF
             // alone makes it, so guiding does not double the weight of the sharp
             // reflections of bright light it was never meant to find.
-            let guidable = if settings.guide_diffuse_lobes { material.guidable_share(shading, wo) } else { 1.0 };
+            let guidable = if settings.guide_diffuse_lobes {
+                material.guidable_share(shading, wo, settings.guide_min_alpha)
+            } else {
+                1.0
+            };
             let guide_share = guidable
                 * match self.guide_shares {
                     _ if !guides_here => 0.0,

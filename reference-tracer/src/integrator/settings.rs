@@ -44,6 +44,9 @@ pub struct IntegratorSettings {
     /// Whether the guides take over only a material's diffuse lobes (a plastic's base,
     /// its coat left to the BSDF at its own probability) or its whole sampling.
     pub guide_diffuse_lobes: bool,
+    /// With `guide_diffuse_lobes`: conductors at least this rough (GGX α) are guided,
+    /// smoother ones left to their BSDF (a narrow lobe the guides cannot follow).
+    pub guide_min_alpha: f32,
     /// Whether guided paths update the guide.
     pub learn: bool,
     /// Whether the guided method without next-event estimation (`Method::Guided`) runs
@@ -73,6 +76,9 @@ pub struct IntegratorSettings {
 
 /// [`IntegratorSettings::vpl_paths`] by default.
 pub const DEFAULT_VPL_PATHS: u32 = 64;
+
+/// Smoothest conductor (GGX α) the command line guides by default (`--guide-min-alpha`).
+pub const DEFAULT_GUIDE_MIN_ALPHA: f32 = 0.3;
 /// [`IntegratorSettings::vpl_min_distance`] by default.
 pub const DEFAULT_VPL_MIN_DISTANCE: f32 = 0.02;
 
@@ -93,6 +99,7 @@ impl Default for IntegratorSettings {
             density_weighted_learning: true,
             nee_weighs_guide: false,
             guide_diffuse_lobes: false,
+            guide_min_alpha: 0.0,
             learn: true,
             nee_kickstart: false,
             light_selection: LightSelection::Power,

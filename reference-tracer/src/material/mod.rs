@@ -127,12 +127,14 @@ impl Material {
     }
 
     /// The share of this material's own sampling at `wo` that a guide may take over:
-    /// the probability of its lobes that spread light (1 for diffuse and rough metal
-    /// surfaces, the base's for plastic, 0 for delta ones). The rest, a coat's
-    /// highlight, the BSDF samples as well as anything could.
-    pub fn guidable_share(&self, shading: &ShadingFrame, wo: Vec3) -> f32 {
+    /// the probability of its lobes that spread light (1 for diffuse surfaces and for
+    /// conductors of GGX α at least `min_conductor_alpha`, the base's for plastic, 0 for
+    /// smoother conductors and delta surfaces). The rest, a coat's highlight or a narrow
+    /// metal lobe, the BSDF samples as well as anything could.
+    pub fn guidable_share(&self, shading: &ShadingFrame, wo: Vec3, min_conductor_alpha: f32) -> f32 {
         match self.surface {
-            Surface::Diffuse { .. } | Surface::Conductor { .. } => 1.0,
+            Surface::Diffuse { .. } => 1.0,
+            Surface::Conductor { alpha, .. } => (alpha >= min_conductor_alpha) as u32 as f32,
             Surface::Plastic(plastic) => 1.0 - plastic.coat_probability(shading.frame.to_local(wo)),
             Surface::Dielectric { .. } | Surface::ThinDielectric { .. } => 0.0,
         }
@@ -238,15 +240,20 @@ mod tests {
         let frame = ShadingFrame { frame: Frame::from_normal(Vec3::Z), geometric: Vec3::Z };
         let wo = Vec3::new(0.6, 0.0, 0.8);
         let diffuse = Material::new(Surface::Diffuse { albedo: Vec3::splat(0.5) }, Vec3::ZERO);
-        assert_eq!(diffuse.guidable_share(&frame, wo), 1.0);
+        assert_eq!(diffuse.guidable_share(&frame, wo, 0.0), 1.0);
         let glass = Material::new(Surface::Dielectric { ior: 1.5 }, Vec3::ZERO);
-        assert_eq!(glass.guidable_share(&frame, wo), 0.0);
+        assert_eq!(glass.guidable_share(&frame, wo, 0.0), 0.0);
         let coat = Plastic::new(Vec3::splat(0.5), 1.0, 1.5, 0.1);
         let plastic = Material::new(Surface::Plastic(coat), Vec3::ZERO);
-        let share = plastic.guidable_share(&frame, wo);
+        let share = plastic.guidable_share(&frame, wo, 0.0);
         assert!((share - (1.0 - coat.coat_probability(wo))).abs() < 1e-6 && share > 0.0 && share < 1.0, "{share}");
+        // Conductors are guided from a roughness on, smoother ones not at all.
+        let metal = |alpha| Material::new(Surface::Conductor { specular: Vec3::ONE, alpha, ior: None }, Vec3::ZERO);
+        assert_eq!(metal(0.1).guidable_share(&frame, wo, 0.3), 0.0);
+        assert_eq!(metal(0.3).guidable_share(&frame, wo, 0.3), 1.0);
+        assert_eq!(metal(0.1).guidable_share(&frame, wo, 0.0), 1.0);
         // At grazing angles the coat reflects more, and takes more of the sampling.
-        assert!(plastic.guidable_share(&frame, Vec3::new(0.99, 0.0, 0.14).normalize()) < share);
+        assert!(plastic.guidable_share(&frame, Vec3::new(0.99, 0.0, 0.14).normalize(), 0.0) < share);
     }
 
     #[test]
