@@ -171,7 +171,7 @@ impl TraceOptions {
             max_boxes: self.focal_boxes.unwrap_or(defaults.max_boxes),
             focal_ratio: self.focal_ratio.unwrap_or(defaults.focal_ratio),
             split_share: self.focal_split.unwrap_or(defaults.split_share),
-            share_resolution: self.focal_cells.unwrap_or(defaults.share_resolution),
+            share_resolution: self.focal_cells,
             share_cost: self.focal_share_cost.unwrap_or(defaults.share_cost),
             merge_ratio: self.focal_merge.unwrap_or(defaults.merge_ratio),
             deposits_per_segment: self.focal_deposits.unwrap_or(defaults.deposits_per_segment),
