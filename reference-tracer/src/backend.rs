@@ -32,6 +32,9 @@ impl Device {
     }
 }
 
+/// What a render gives back: the image and its statistics, or why it was refused.
+pub type RenderResult = Result<(Image, RenderStatistics), String>;
+
 /// A place that renders: it takes a scene, the session's learners and the render's
 /// settings, traces every pass, and leaves what the learners learned in them.
 pub trait Backend {
@@ -44,7 +47,7 @@ pub trait Backend {
         learners: &mut SessionLearners,
         settings: &RenderSettings,
         on_pass: &mut dyn FnMut(&Progress<'_>),
-    ) -> Result<(Image, RenderStatistics), String>;
+    ) -> RenderResult;
 }
 
 /// The CPU tracer: the scene's intersector, and every core through rayon.
@@ -71,7 +74,7 @@ impl Backend for CpuBackend {
         learners: &mut SessionLearners,
         settings: &RenderSettings,
         on_pass: &mut dyn FnMut(&Progress<'_>),
-    ) -> Result<(Image, RenderStatistics), String> {
+    ) -> RenderResult {
         // Every learner built goes to the render, which keeps those the method uses
         // (`Learners::used_by`).
         let borrowed = Learners {

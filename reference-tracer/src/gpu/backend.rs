@@ -2,11 +2,10 @@
 //! render, the guide comes home after each.
 
 use super::{GpuContext, GpuGuide, GpuTracer};
-use crate::backend::Backend;
+use crate::backend::{Backend, RenderResult};
 use crate::integrator::Method;
 use crate::learners::SessionLearners;
-use crate::output::Image;
-use crate::render::{Progress, RenderSettings, RenderStatistics};
+use crate::render::{Progress, RenderSettings};
 use crate::scene::Scene;
 use crate::schedule::Schedule;
 
@@ -23,7 +22,7 @@ impl Backend for GpuBackend {
         learners: &mut SessionLearners,
         settings: &RenderSettings,
         on_pass: &mut dyn FnMut(&Progress<'_>),
-    ) -> Result<(Image, RenderStatistics), String> {
+    ) -> RenderResult {
         let integrator = &settings.integrator;
         let method = integrator.method;
         if integrator.nee_kickstart && method == Method::Guided {

@@ -114,7 +114,9 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             // light (its diffuse lobes): a coat's highlight stays as likely as the BSDF
             // alone makes it, so guiding does not double the weight of the sharp
             // reflections of bright light it was never meant to find.
-            let guidable = if settings.guide_diffuse_lobes {
+            // Unguided paths skip it: their shares are 0 whatever it is.
+            let guided = self.guide.is_some() || self.focal.is_some();
+            let guidable = if settings.guide_diffuse_lobes && guided {
                 material.guidable_share(shading, wo, settings.guide_min_alpha)
             } else {
                 1.0
