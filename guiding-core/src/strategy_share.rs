@@ -109,7 +109,7 @@ impl StrategyShares {
     }
 
     /// The cell holding `point` (clamped into the grid).
-    fn cell(&self, point: Vec3) -> Option<usize> {
+    pub(crate) fn cell(&self, point: Vec3) -> Option<usize> {
         if !point.is_finite() {
             return None;
         }

@@ -5,7 +5,8 @@ use alloc::vec::Vec;
 
 use glam::Vec3;
 
-use super::lanes::{BoxLanes, LANES};
+use super::box_cells::{carry_multiplier, probabilities, BoxCells};
+use super::lanes::{crossed_runs, morton, ray_box, BoxLanes, LANES};
 use super::merge::{merge_boxes, MassBox};
 use super::octree::{FocalOctree, Leaf};
 use super::settings::FocalGuideSettings;
@@ -85,22 +86,12 @@ pub struct FocalGuide {
     cdf: Vec<f32>,
     /// The probability of aiming at the boxes, learned per cell of a coarse grid.
     selection: StrategyShares,
+    /// The boxes' probabilities learned per cell of the same grid (`boxes_per_cell`).
+    cells: BoxCells,
 }
 
 /// The probabilities of aiming at the boxes that each selection cell weighs.
 pub const CANDIDATES: [f32; 7] = crate::strategy_share::CANDIDATES;
-
-/// The Morton code (10 bits per axis, interleaved) of `p` in the unit cube.
-fn morton(p: Vec3) -> u32 {
-    let spread = |v: f32| {
-        let mut x = ((v.clamp(0.0, 1.0) * 1023.0) as u32) & 0x3ff;
-        x = (x | (x << 16)) & 0x0300_00ff;
-        x = (x | (x << 8)) & 0x0300_f00f;
-        x = (x | (x << 4)) & 0x030c_30c3;
-        (x | (x << 2)) & 0x0924_9249
-    };
-    spread(p.x) | (spread(p.y) << 1) | (spread(p.z) << 2)
-}
 
 /// One direction a path scattered into, as the selection learns from it: what arrived
 /// and every density that drew it.
@@ -108,6 +99,8 @@ fn morton(p: Vec3) -> u32 {
 pub struct FocalArrival {
     /// The vertex, world space.
     pub point: Vec3,
+    /// The direction drawn (unit).
+    pub direction: Vec3,
     /// fs·cos θ × the radiance that arrived along the direction (luminance): the
     /// integrand of the vertex's scattering integral at that direction.
     pub integrand: f32,
@@ -120,19 +113,6 @@ pub struct FocalArrival {
     /// The probability of aiming at the boxes the mixture used; the rest of the mixture
     /// (the BSDF's share) changes with it, any other component stays.
     pub selection: f32,
-}
-
-/// The parameters `[t0, t1]` of the ray `origin + t·direction` inside the box, with
-/// `1/direction` given; empty (t0 ≥ t1) when it misses. Infinite reciprocals of zero
-/// components work: such a ray is inside the slab or never.
-pub(crate) fn ray_box(origin: Vec3, inverse_direction: Vec3, low: Vec3, high: Vec3) -> (f32, f32) {
-    let a = (low - origin) * inverse_direction;
-    let b = (high - origin) * inverse_direction;
-    // A NaN (0·∞: the origin on a slab's plane with the ray along it) must not win:
-    // f32::min/max return the other operand.
-    let near = a.min(b);
-    let far = a.max(b);
-    (near.x.max(near.y).max(near.z), far.x.min(far.y).min(far.z))
 }
 
 impl FocalGuide {
@@ -157,6 +137,7 @@ impl FocalGuide {
             run_lanes: Vec::new(),
             cdf: Vec::new(),
             selection,
+            cells: BoxCells::default(),
         })
     }
 
@@ -187,7 +168,14 @@ impl FocalGuide {
     /// for each candidate probability c, the second moment ∫ F²/p_c of the estimator
     /// with that mixture is estimated from the direction drawn with p:
     /// F²/(p·p_c), where p_c = p + (c − selection)·(focal_pdf − bsdf_pdf).
+    ///
+    /// With `boxes_per_cell`, the arrival also teaches its cell which boxes its light came
+    /// through: integrand / pdf, shared among the boxes the direction crosses by their
+    /// part of the focal density along it.
     pub fn record_arrival(&self, arrival: &FocalArrival) -> UpdateOutcome {
+        if self.cells.enabled() {
+            self.learn_boxes(arrival);
+        }
         self.selection.record(&StrategyArrival {
             point: arrival.point,
             integrand: arrival.integrand,
@@ -196,6 +184,36 @@ impl FocalGuide {
             bsdf_pdf: arrival.bsdf_pdf,
             selection: arrival.selection,
         })
+    }
+
+    fn learn_boxes(&self, arrival: &FocalArrival) {
+        let Some(cell) = self.selection.cell(arrival.point) else { return };
+        self.cells.count(cell);
+        let amount = arrival.integrand / arrival.pdf;
+        if !(amount > 0.0 && amount.is_finite() && arrival.direction.is_finite()) {
+            return;
+        }
+        let inverse = arrival.direction.recip();
+        let scales = self.cells.scales(cell);
+        // Each crossed box's part of the cell's focal density along the direction: once
+        // to add them up, once to share the amount out (no allocation per arrival).
+        let each_term = |visit: &mut dyn FnMut(usize, f32)| {
+            crossed_runs(&self.run_lanes, arrival.point, inverse, |run| {
+                let terms = self.box_lanes[run].span_terms(arrival.point, inverse);
+                for (lane, &term) in terms.iter().enumerate() {
+                    let index = run * LANES + lane;
+                    let term = term * scales.map_or(1.0, |s| s[index]);
+                    if term > 0.0 {
+                        visit(index, term);
+                    }
+                }
+            });
+        };
+        let mut total = 0.0f32;
+        each_term(&mut |_, term| total += term);
+        if total > 0.0 && total.is_finite() {
+            each_term(&mut |index, term| self.cells.add(cell, index, amount * term / total));
+        }
     }
 
     /// The settings it was built with.
@@ -219,6 +237,7 @@ impl FocalGuide {
             + self.boxes.len() * (core::mem::size_of::<FocalBox>() + 4)
             + (self.box_lanes.len() + self.run_lanes.len()) * core::mem::size_of::<BoxLanes>()
             + self.selection.memory_bytes()
+            + self.cells.memory_bytes()
     }
 
     /// Learns one segment: its weight × length is spread over the leaves it crosses,
@@ -268,6 +287,29 @@ impl FocalGuide {
     /// chosen by its mass.
     pub fn rebuild_sampling(&mut self) {
         self.selection.rebuild_sampling();
+        // What each cell learned of the old boxes, carried to the new ones below.
+        let old_boxes = core::mem::take(&mut self.boxes);
+        let old_global = probabilities(&self.cdf);
+        let multipliers = if self.cells.enabled() { self.cells.multipliers(&old_global) } else { Vec::new() };
+        self.rebuild_boxes();
+        if self.settings.boxes_per_cell && !self.boxes.is_empty() {
+            let carried: Vec<Option<Vec<f32>>> = multipliers
+                .iter()
+                .map(|m| {
+                    let m = m.as_ref()?;
+                    Some(self.boxes.iter().map(|b| carry_multiplier(&old_boxes, m, 0.5 * (b.low + b.high))).collect())
+                })
+                .collect();
+            let global = probabilities(&self.cdf);
+            let cells = self.selection.cell_count();
+            self.cells.restart(cells, self.box_lanes.len() * LANES, &global, &carried);
+        } else {
+            self.cells = BoxCells::default();
+        }
+    }
+
+    /// The boxes, their cdf and lanes from the octree (refined first where mass gathered).
+    fn rebuild_boxes(&mut self) {
         self.boxes.clear();
         self.cdf.clear();
         self.box_lanes.clear();
@@ -343,7 +385,8 @@ impl FocalGuide {
     /// (by mass), `u` the point inside it. `None` when there are no boxes or the point
     /// drawn is `point` itself.
     pub fn sample(&self, point: Vec3, u_box: f32, u: Vec3) -> Option<DirectionSample> {
-        let index = self.cdf.partition_point(|&c| c <= u_box).min(self.boxes.len().checked_sub(1)?);
+        let cdf = self.cell_of(point).and_then(|cell| self.cells.cdf(cell)).unwrap_or(&self.cdf);
+        let index = cdf.partition_point(|&c| c <= u_box).min(self.boxes.len().checked_sub(1)?);
         let chosen = &self.boxes[index];
         let target = chosen.low + (chosen.high - chosen.low) * u.clamp(Vec3::ZERO, Vec3::ONE);
         let offset = target - point;
@@ -366,22 +409,33 @@ impl FocalGuide {
         if self.boxes.is_empty() || !crosses {
             return 0.0;
         }
+        let scales = self.cell_of(point).and_then(|cell| self.cells.scales(cell));
         let mut pdf = 0.0f32;
         // Most directions that cross the bounds still miss most runs.
-        for (group, runs) in self.run_lanes.iter().enumerate() {
-            let mut hit = runs.hits(point, inverse);
-            while hit != 0 {
-                let run = group * LANES + hit.trailing_zeros() as usize;
-                hit &= hit - 1;
-                pdf += self.box_lanes[run].span_integral(point, inverse);
-            }
-        }
+        crossed_runs(&self.run_lanes, point, inverse, |run| {
+            let lanes = &self.box_lanes[run];
+            let scale = scales.and_then(|s| <&[f32; LANES]>::try_from(s.get(run * LANES..(run + 1) * LANES)?).ok());
+            pdf += match scale {
+                Some(scale) => lanes.span_integral_scaled(point, inverse, scale),
+                None => lanes.span_integral(point, inverse),
+            };
+        });
         pdf
+    }
+
+    /// The selection cell of `point` where cells learn their own box probabilities.
+    #[inline]
+    fn cell_of(&self, point: Vec3) -> Option<usize> {
+        if self.cells.enabled() {
+            self.selection.cell(point)
+        } else {
+            None
+        }
     }
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::distribution::DirectionalDistribution;
     use crate::frame::Frame;
@@ -413,7 +467,7 @@ mod tests {
     /// ∫ pdf dω over the sphere, adaptively to the given absolute error per leaf: the
     /// pdf varies smoothly inside each box's cone (as t³), so splitting to full depth
     /// wherever it is not constant (as [`pdf_integral`] does) would never end.
-    fn pdf_integral_within(pdf: &impl Fn(Vec3) -> f32, axis: Vec3, tolerance: f64) -> f64 {
+    pub(in crate::focal) fn pdf_integral_within(pdf: &impl Fn(Vec3) -> f32, axis: Vec3, tolerance: f64) -> f64 {
         let frame = Frame::from_normal(axis);
         let (nz, nphi) = (32, 64);
         let mut total = 0.0;
@@ -430,9 +484,9 @@ mod tests {
 
     /// The guide seen from one point, as a directional distribution for the shared
     /// checks: the two extra uniforms come from a generator seeded by the two given.
-    struct FromPoint<'a> {
-        guide: &'a FocalGuide,
-        point: Vec3,
+    pub(in crate::focal) struct FromPoint<'a> {
+        pub(in crate::focal) guide: &'a FocalGuide,
+        pub(in crate::focal) point: Vec3,
     }
 
     impl DirectionalDistribution for FromPoint<'_> {
@@ -487,6 +541,7 @@ mod tests {
         }
         let arrival = FocalArrival {
             point: Vec3::splat(0.5),
+            direction: Vec3::X,
             integrand: 1.0,
             pdf: 1.0,
             focal_pdf: 0.0,
@@ -518,8 +573,15 @@ mod tests {
             // where it arrives evenly, the BSDF alone is best.
             let in_cone = rng.next_f32() < 0.02;
             let (focal_pdf, bsdf_pdf) = if in_cone { (40.0, 0.3) } else { (0.0, 0.3) };
-            let base =
-                FocalArrival { point: gap_side, integrand: 0.0, pdf: bsdf_pdf, focal_pdf, bsdf_pdf, selection: 0.0 };
+            let base = FocalArrival {
+                point: gap_side,
+                direction: Vec3::X,
+                integrand: 0.0,
+                pdf: bsdf_pdf,
+                focal_pdf,
+                bsdf_pdf,
+                selection: 0.0,
+            };
             let through_gap = if in_cone { 10.0 } else { 0.0 };
             guide.record_arrival(&FocalArrival { integrand: through_gap, ..base });
             guide.record_arrival(&FocalArrival { point: open_side, integrand: 0.3, ..base });

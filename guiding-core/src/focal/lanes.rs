@@ -1,5 +1,7 @@
 //! [`BoxLanes`]: eight boxes side by side (one array per coordinate), so that a ray's
-//! spans in all of them are computed together and the compiler can use vector lanes.
+//! spans in all of them are computed together and the compiler can use vector lanes;
+//! and the box geometry around them: a ray's span in one box, the runs a ray crosses,
+//! the Morton order that makes a run a compact cluster.
 
 use glam::Vec3;
 
@@ -62,19 +64,81 @@ impl BoxLanes {
         (0..LANES).fold(0, |mask, i| mask | (((far[i] > near[i] && self.density[i] > 0.0) as u32) << i))
     }
 
-    /// Σ over the boxes of density · ∫ t² dt over the ray's span: (t1³ − t0³)/3.
+    /// Per box: density · ∫ t² dt over the ray's span, (t1³ − t0³)/3 (0 where it misses).
     #[inline]
-    pub(super) fn span_integral(&self, origin: Vec3, inverse_direction: Vec3) -> f32 {
+    pub(super) fn span_terms(&self, origin: Vec3, inverse_direction: Vec3) -> [f32; LANES] {
         let (near, far) = self.spans(origin, inverse_direction);
         let mut terms = [0.0f32; LANES];
         for i in 0..LANES {
             let (t0, t1) = (near[i], far[i]);
-            let cube = self.density[i] * (t1 * t1 * t1 - t0 * t0 * t0);
+            let cube = self.density[i] * (t1 * t1 * t1 - t0 * t0 * t0) * (1.0 / 3.0);
             terms[i] = if t1 > t0 { cube } else { 0.0 };
         }
-        // Pairwise, so the lanes add as vectors.
-        let half: [f32; 4] = core::array::from_fn(|i| terms[i] + terms[i + 4]);
-        ((half[0] + half[2]) + (half[1] + half[3])) * (1.0 / 3.0)
+        terms
+    }
+
+    /// Σ over the boxes of density · ∫ t² dt over the ray's span.
+    #[inline]
+    pub(super) fn span_integral(&self, origin: Vec3, inverse_direction: Vec3) -> f32 {
+        sum_lanes(self.span_terms(origin, inverse_direction))
+    }
+
+    /// As [`span_integral`](Self::span_integral), each box's density scaled by `scale`.
+    #[inline]
+    pub(super) fn span_integral_scaled(&self, origin: Vec3, inverse_direction: Vec3, scale: &[f32; LANES]) -> f32 {
+        let terms = self.span_terms(origin, inverse_direction);
+        sum_lanes(core::array::from_fn(|i| terms[i] * scale[i]))
+    }
+}
+
+/// The lanes' sum, pairwise, so they add as vectors.
+#[inline]
+fn sum_lanes(terms: [f32; LANES]) -> f32 {
+    let half: [f32; 4] = core::array::from_fn(|i| terms[i] + terms[i + 4]);
+    (half[0] + half[2]) + (half[1] + half[3])
+}
+
+/// The parameters `[t0, t1]` of the ray `origin + t·direction` inside the box, with
+/// `1/direction` given; empty (t0 ≥ t1) when it misses. Infinite reciprocals of zero
+/// components work: such a ray is inside the slab or never.
+pub(crate) fn ray_box(origin: Vec3, inverse_direction: Vec3, low: Vec3, high: Vec3) -> (f32, f32) {
+    let a = (low - origin) * inverse_direction;
+    let b = (high - origin) * inverse_direction;
+    // A NaN (0·∞: the origin on a slab's plane with the ray along it) must not win:
+    // f32::min/max return the other operand.
+    let near = a.min(b);
+    let far = a.max(b);
+    (near.x.max(near.y).max(near.z), far.x.min(far.y).min(far.z))
+}
+
+/// The Morton code (10 bits per axis, interleaved) of `p` in the unit cube.
+pub(super) fn morton(p: Vec3) -> u32 {
+    let spread = |v: f32| {
+        let mut x = ((v.clamp(0.0, 1.0) * 1023.0) as u32) & 0x3ff;
+        x = (x | (x << 16)) & 0x0300_00ff;
+        x = (x | (x << 8)) & 0x0300_f00f;
+        x = (x | (x << 4)) & 0x030c_30c3;
+        (x | (x << 2)) & 0x0924_9249
+    };
+    spread(p.x) | (spread(p.y) << 1) | (spread(p.z) << 2)
+}
+
+/// Calls `visit` with the index of every run of [`LANES`] boxes whose bounds the ray
+/// `origin + t·direction` (`1/direction` given) crosses; `run_lanes` holds the runs'
+/// bounds, [`LANES`] runs to an entry.
+#[inline]
+pub(super) fn crossed_runs(
+    run_lanes: &[BoxLanes],
+    origin: Vec3,
+    inverse_direction: Vec3,
+    mut visit: impl FnMut(usize),
+) {
+    for (group, runs) in run_lanes.iter().enumerate() {
+        let mut hit = runs.hits(origin, inverse_direction);
+        while hit != 0 {
+            visit(group * LANES + hit.trailing_zeros() as usize);
+            hit &= hit - 1;
+        }
     }
 }
 

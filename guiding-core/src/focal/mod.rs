@@ -17,7 +17,11 @@
 //!   the exact line integral of the boxes' density, ∫ ρ(x + tω) t² dt. Neighbouring
 //!   leaves of like density merge first, so a long thin opening is a few
 //!   long boxes, not a row of many cubes.
+//! - Each cell of a coarse grid learns which boxes its vertices' light actually came
+//!   through (`BoxCells`): from behind a wall, boxes out of sight through the gap are
+//!   drawn less often there.
 
+mod box_cells;
 mod guide;
 mod lanes;
 mod merge;

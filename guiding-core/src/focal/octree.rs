@@ -100,7 +100,7 @@ impl FocalOctree {
             }
             let probe = origin + direction * (t + nudge).min(0.5 * (t + t1));
             let Some((leaf, low, size)) = self.leaf_cube_at(probe) else { return };
-            let (_, exit) = crate::focal::guide::ray_box(origin, inverse, low, low + Vec3::splat(size));
+            let (_, exit) = crate::focal::lanes::ray_box(origin, inverse, low, low + Vec3::splat(size));
             let last = crossed + 1 == MAX_LEAVES_PER_SEGMENT;
             // A NaN or non-advancing exit (rounding at a face) ends the walk in this leaf.
             let advances = exit > t;
@@ -203,7 +203,7 @@ mod tests {
         assert!((total - 2.0 * length).abs() < 1e-4, "{total}");
         for leaf in &leaves {
             let (near, far) =
-                crate::focal::guide::ray_box(origin, direction.recip(), leaf.low, leaf.low + Vec3::splat(leaf.size));
+                crate::focal::lanes::ray_box(origin, direction.recip(), leaf.low, leaf.low + Vec3::splat(leaf.size));
             let inside = (far.min(length) - near.max(0.0)).max(0.0);
             assert!((leaf.mass - 2.0 * inside).abs() < 1e-4, "leaf {}: {} against {}", leaf.node, leaf.mass, inside);
         }

@@ -175,6 +175,7 @@ impl TraceOptions {
             share_cost: self.focal_share_cost.unwrap_or(defaults.share_cost),
             merge_ratio: self.focal_merge.unwrap_or(defaults.merge_ratio),
             deposits_per_segment: self.focal_deposits.unwrap_or(defaults.deposits_per_segment),
+            boxes_per_cell: self.focal_boxes_per_cell.unwrap_or(defaults.boxes_per_cell),
             ..defaults
         };
         settings.validate().map_err(|e| format!("focal guide: {e}"))?;

@@ -276,7 +276,8 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                     // The integrand is filled in once the path knows what arrived.
                     let integrand = luminance(f);
                     let selection = focal_share;
-                    focal_arrival = Some(FocalArrival { point, integrand, pdf, focal_pdf, bsdf_pdf, selection });
+                    focal_arrival =
+                        Some(FocalArrival { point, direction: wi, integrand, pdf, focal_pdf, bsdf_pdf, selection });
                 }
                 // Where the mixture cannot aim at the focal boxes the two factors are one:
                 // unguided and directionally guided paths survive as they always did (the
