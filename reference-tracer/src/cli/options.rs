@@ -125,8 +125,9 @@ pub struct TraceOptions {
     /// Whether each cell of the focal guide's selection grid learns its own probabilities
     /// of the boxes, by what its vertices' light came through (a quarter stays with the
     /// boxes' global masses), rather than every cell drawing them by mass (on, off).
-    /// Default on: guided-nee at 60 s, relMSE on ÷ off, seeds 41 and 42, door 160×120
-    /// 0.960 and 0.954, Veach Ajar 0.924 and 0.941 (cornell has no boxes).
+    /// Default on: at 60 s, relMSE on ÷ off, seeds 41 and 42, guided-nee on door 160×120
+    /// 0.960 and 0.954 and on Veach Ajar 0.924 and 0.941 (cornell has no boxes); guided
+    /// on door 0.736 and 0.462, cornell 128² 1.05, many_lights 160×120 (30 s) 0.720.
     #[arg(long, value_parser = parse_switch)]
     pub(super) focal_boxes_per_cell: Option<bool>,
     /// Share of paths the focal guide learns from, in (0, 1]. 0.25 measured best (60 s,
