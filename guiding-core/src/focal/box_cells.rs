@@ -15,6 +15,7 @@ use glam::Vec3;
 
 use super::guide::FocalBox;
 use crate::atomic_f32;
+use crate::cdf::{build_cdf, cdf_probability};
 
 /// Share of a learned cell's box probabilities that stays with the global masses.
 pub(super) const PRIOR_SHARE: f32 = 0.25;
@@ -90,9 +91,7 @@ impl BoxCells {
     #[inline]
     pub(super) fn count(&self, cell: usize) {
         if let Some(count) = self.arrivals.get(cell) {
-            if count.load(Ordering::Relaxed) < u32::MAX {
-                count.fetch_add(1, Ordering::Relaxed);
-            }
+            atomic_f32::increment_saturating(count);
         }
     }
 
@@ -145,22 +144,21 @@ impl BoxCells {
             if !(weighted > 0.0 && weighted.is_finite()) {
                 continue;
             }
-            let (scale, cdf) = (&mut self.scale[cell * stride..], &mut self.cdf[cell * stride..]);
-            let mut running = 0.0f64;
-            for (k, (&p, &m)) in global.iter().zip(m).enumerate() {
-                let learned = p as f64 * m as f64 / weighted;
-                let probability = (1.0 - PRIOR_SHARE as f64) * learned + PRIOR_SHARE as f64 * p as f64;
-                scale[k] = if p > 0.0 { (probability / p as f64) as f32 } else { 0.0 };
-                running += probability;
-                cdf[k] = running as f32;
-            }
-            // The padding lanes end the cdf at 1: they are never drawn (their scale is 0).
-            for k in global.len()..stride {
-                scale[k] = 0.0;
-                cdf[k] = 1.0;
-            }
-            if let Some(last) = global.len().checked_sub(1) {
-                cdf[last] = 1.0;
+            // The padding lanes weigh nothing: never drawn, their scale 0.
+            let probability = |k: usize| match (global.get(k), m.get(k)) {
+                (Some(&p), Some(&m)) => {
+                    let learned = p as f64 * m as f64 / weighted;
+                    ((1.0 - PRIOR_SHARE as f64) * learned + PRIOR_SHARE as f64 * p as f64) as f32
+                }
+                _ => 0.0,
+            };
+            let cdf = &mut self.cdf[cell * stride..(cell + 1) * stride];
+            build_cdf(cdf, 0.0, probability);
+            // The scale is what the cdf draws over what the global one does, so the pdf
+            // matches the sampler to the last quantum.
+            for (k, scale) in self.scale[cell * stride..(cell + 1) * stride].iter_mut().enumerate() {
+                let p = global.get(k).copied().unwrap_or(0.0);
+                *scale = if p > 0.0 { cdf_probability(cdf, k) / p } else { 0.0 };
             }
         }
     }
@@ -168,13 +166,7 @@ impl BoxCells {
 
 /// The probabilities of a cumulative distribution's entries.
 pub(super) fn probabilities(cdf: &[f32]) -> Vec<f32> {
-    cdf.iter()
-        .scan(0.0f32, |previous, &c| {
-            let p = c - *previous;
-            *previous = c;
-            Some(p)
-        })
-        .collect()
+    (0..cdf.len()).map(|k| cdf_probability(cdf, k)).collect()
 }
 
 /// The multiplier a new box at `center` takes from the old boxes' `multipliers`: that of
