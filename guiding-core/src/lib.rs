@@ -36,6 +36,8 @@ mod guide;
 mod intersector;
 mod low_discrepancy;
 mod path_recorder;
+#[cfg(any(feature = "hemisphere", feature = "volume"))]
+mod q_table;
 mod scattering;
 mod strategy_share;
 #[cfg(any(feature = "hemisphere", feature = "volume"))]

@@ -7,17 +7,17 @@ use core::sync::atomic::{AtomicU32, AtomicUsize, Ordering};
 use glam::{Vec2, Vec3};
 
 use crate::atomic_f32;
-use crate::cdf::{build_cdf, cdf_probability, sample_cdf};
+use crate::cdf::build_cdf;
 use crate::cell_grid::CellGrid;
-use crate::distribution::{fold_onto_hemisphere, folded_pdf, DirectionSample, DirectionalDistribution};
 use crate::error::Error;
 use crate::guide::{Guide, GuideStats, TableCounters};
+use crate::q_table::{estimate_row_integral, learn_entry, EntrySlots, TableRow};
 use crate::scattering::ScatteringFunction;
-use crate::update_rule::{accept_target, blend, importance_weight, IntegralEstimator, UpdateOutcome};
+use crate::update_rule::{accept_target, importance_weight, UpdateOutcome};
 
+use super::distribution::VolumeDistribution;
 use super::irradiance_sh;
 use super::settings::{IrradianceVolumeSettings, BYTES_PER_NODE};
-use super::sphere_layout::SphereLayout;
 
 /// Marks a node entry as a leaf (the low bits are its leaf index); otherwise the entry is
 /// the index of the node's first of eight children.
@@ -88,36 +88,6 @@ pub struct IrradianceVolume {
     pub(crate) epoch: u32,
     pub(crate) rejected_non_finite: AtomicUsize,
     pub(crate) rejected_negative: AtomicUsize,
-}
-
-/// The sampling distribution of one region: its leaf's CDF over the sphere, folded onto
-/// the normal's hemisphere.
-#[derive(Clone, Copy, Debug)]
-pub struct VolumeDistribution<'a> {
-    cdf: &'a [f32],
-    layout: SphereLayout,
-    normal: Vec3,
-}
-
-impl VolumeDistribution<'_> {
-    fn sphere_pdf(&self, direction: Vec3) -> f32 {
-        match self.layout.patch_of(direction) {
-            Some(patch) => cdf_probability(self.cdf, patch) / self.layout.patch_solid_angle(),
-            None => 0.0,
-        }
-    }
-}
-
-impl DirectionalDistribution for VolumeDistribution<'_> {
-    fn sample(&self, u: Vec2) -> DirectionSample {
-        let (patch, rest) = sample_cdf(self.cdf, u.x);
-        let direction = fold_onto_hemisphere(self.layout.direction_in_patch(patch, Vec2::new(rest, u.y)), self.normal);
-        DirectionSample { direction, pdf: self.pdf(direction) }
-    }
-
-    fn pdf(&self, direction: Vec3) -> f32 {
-        folded_pdf(direction, self.normal, |d| self.sphere_pdf(d))
-    }
 }
 
 /// The pieces of a volume, as serialization reads and writes them.
@@ -478,17 +448,52 @@ impl IrradianceVolume {
         };
         let leaf = region.leaf as usize;
         let index = leaf * self.patch_count() + patch;
-        let patch_visits = atomic_f32::increment_saturating(&self.patch_visits[index]);
-        let leaf_visits = atomic_f32::increment_saturating(&self.leaf_visits[leaf]);
-        let alpha = self.settings.update_rule.learning_rate.weighted_alpha(
-            (patch_visits, &self.patch_weights[index]),
-            leaf_visits,
-            self.epoch,
-            weight,
-        );
-        let floor = self.settings.q_floor;
-        atomic_f32::update(&self.q[index], |q| blend(q, target, alpha, floor));
+        let slots = EntrySlots {
+            q: &self.q[index],
+            visits: &self.patch_visits[index],
+            weights: &self.patch_weights[index],
+            region_visits: &self.leaf_visits[leaf],
+        };
+        learn_entry(slots, target, weight, &self.settings.update_rule, self.epoch, self.settings.q_floor);
         UpdateOutcome::Accepted
+    }
+}
+
+/// One leaf's row: its sphere of patches in world axes, seen from the region's normal.
+struct LeafRow<'a> {
+    volume: &'a IrradianceVolume,
+    region: VolumeRegion,
+}
+
+impl TableRow for LeafRow<'_> {
+    fn q(&self) -> &[AtomicU32] {
+        let (leaf, patches) = (self.region.leaf as usize, self.volume.patch_count());
+        &self.volume.q[leaf * patches..(leaf + 1) * patches]
+    }
+
+    fn entry_solid_angle(&self) -> f64 {
+        self.volume.settings.layout.patch_solid_angle() as f64
+    }
+
+    fn entry_of(&self, wi: Vec3) -> Option<usize> {
+        self.volume.settings.layout.patch_of(wi)
+    }
+
+    fn center(&self, k: usize) -> Vec3 {
+        self.volume.patch_centers[k]
+    }
+
+    fn center_cos(&self, k: usize) -> f32 {
+        self.volume.patch_centers[k].dot(self.region.normal).max(0.0)
+    }
+
+    fn direction_in_entry(&self, k: usize, u: Vec2) -> Vec3 {
+        self.volume.settings.layout.direction_in_patch(k, u)
+    }
+
+    fn lambertian_integral(&self, albedo: f32) -> f64 {
+        let irradiance = &self.volume.irradiance[self.region.leaf as usize];
+        albedo as f64 * irradiance_sh::cosine_integral(irradiance, self.region.normal) as f64
     }
 }
 
@@ -524,12 +529,10 @@ impl Guide for IrradianceVolume {
         }
     }
 
-    /// `BsdfWeightedSum`: for a Lambertian BSDF, albedo × the leaf's spherical-harmonic
-    /// cosine integral about the region's normal (Q as of the last rebuild; nine terms),
-    /// otherwise Σ_j Q_j·fs(ω_j)·cos θ_j·ΔΩ at patch centres. `BsdfSampled`: the same for
-    /// Lambertian BSDFs, one BSDF-drawn direction otherwise. `StratifiedPatches`: the
-    /// same sum at one jittered direction per patch. `MaxEntry`: π·max_j of the centre
-    /// terms.
+    /// By the settings' [`IntegralEstimator`](crate::IntegralEstimator), as for every
+    /// table structure; a Lambertian BSDF's closed form here is albedo × the leaf's
+    /// spherical-harmonic cosine integral about the region's normal (Q as of the last
+    /// rebuild; nine terms).
     fn estimate_integral<S: ScatteringFunction + ?Sized>(
         &self,
         region: VolumeRegion,
@@ -537,45 +540,8 @@ impl Guide for IrradianceVolume {
         bsdf: &S,
         u: Vec2,
     ) -> f32 {
-        let patches = self.patch_count();
-        let q = &self.q[region.leaf as usize * patches..(region.leaf as usize + 1) * patches];
-        let solid_angle = self.settings.layout.patch_solid_angle() as f64;
-        let at_center = |k: usize| match bsdf.lambertian_albedo() {
-            Some(albedo) => albedo * core::f32::consts::FRAC_1_PI * self.patch_centers[k].dot(region.normal).max(0.0),
-            None => bsdf.eval_cos(self.patch_centers[k], wo),
-        };
-        let terms = (0..patches).map(|k| atomic_f32::load(&q[k]) as f64);
-        let estimate = match self.settings.update_rule.integral {
-            IntegralEstimator::BsdfSampled | IntegralEstimator::PathContinuation
-                if bsdf.lambertian_albedo().is_none() && bsdf.can_sample() =>
-            {
-                let Some(sample) = bsdf.sample_cos(wo, u) else { return 0.0 };
-                let q = self.settings.layout.patch_of(sample.wi).map_or(0.0, |k| atomic_f32::load(&q[k]));
-                q as f64 * sample.weight as f64
-            }
-            IntegralEstimator::BsdfWeightedSum
-            | IntegralEstimator::BsdfSampled
-            | IntegralEstimator::PathContinuation
-                if bsdf.lambertian_albedo().is_some() =>
-            {
-                let albedo = bsdf.lambertian_albedo().unwrap_or(0.0) as f64;
-                albedo * irradiance_sh::cosine_integral(&self.irradiance[region.leaf as usize], region.normal) as f64
-            }
-            IntegralEstimator::BsdfWeightedSum
-            | IntegralEstimator::BsdfSampled
-            | IntegralEstimator::PathContinuation => {
-                solid_angle * terms.enumerate().map(|(k, q)| q * at_center(k) as f64).sum::<f64>()
-            }
-            IntegralEstimator::StratifiedPatches => {
-                let layout = self.settings.layout;
-                let jittered = |k: usize| bsdf.eval_cos(layout.direction_in_patch(k, u), wo) as f64;
-                solid_angle * terms.enumerate().map(|(k, q)| q * jittered(k)).sum::<f64>()
-            }
-            IntegralEstimator::MaxEntry => {
-                core::f64::consts::PI * terms.enumerate().map(|(k, q)| q * at_center(k) as f64).fold(0.0, f64::max)
-            }
-        };
-        estimate.min(f32::MAX as f64) as f32
+        let row = LeafRow { volume: self, region };
+        estimate_row_integral(self.settings.update_rule.integral, &row, bsdf, wo, u)
     }
 
     fn update_rule(&self) -> crate::update_rule::UpdateRule {
@@ -617,144 +583,4 @@ impl Guide for IrradianceVolume {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::low_discrepancy::Pcg32;
-    use crate::validation::{chi_square_test, pdf_integral, ChiSquareSettings};
-
-    fn volume(budget_bytes: usize) -> IrradianceVolume {
-        let settings = IrradianceVolumeSettings { budget_bytes, ..Default::default() };
-        IrradianceVolume::new(Vec3::ZERO, Vec3::new(2.0, 1.0, 1.0), settings).unwrap()
-    }
-
-    /// Bug 2 of the guiding issue, as for the hemisphere grid: Q learned through mixtures
-    /// that sample the volume with probability 0.1 and 0.9 (the rest cosine-weighted about
-    /// the normal) is each patch's mean over its solid angle. The field is bright within
-    /// 0.02 of the horizon, inside the band just above it.
-    #[test]
-    fn learned_q_does_not_depend_on_the_density_that_drew_the_directions() {
-        let radiance = |d: Vec3| if d.z < 0.02 { 50.0 } else { 1.0 };
-        let layout = SphereLayout::default();
-        let horizon = layout.patch_of(Vec3::new(0.999, 0.0, 0.01)).unwrap();
-        let point = Vec3::splat(0.5);
-        let q = |p_guide: f32, weighted: bool| {
-            let mut guide = volume(64 << 10);
-            let mut rng = Pcg32::new(9, 2);
-            for _ in 0..4 {
-                let region = guide.locate(point, Vec3::Z).unwrap();
-                let d = guide.distribution(region);
-                for _ in 0..250_000 {
-                    let (wi, pdf) = crate::validation::sample_guide_or_cosine(&d, p_guide, &mut rng);
-                    if weighted {
-                        guide.update_sampled(region, wi, radiance(wi), pdf);
-                    } else {
-                        guide.update(region, wi, radiance(wi));
-                    }
-                }
-                // Splits too: the children share the parent's weights.
-                guide.rebuild_sampling();
-            }
-            guide.q(guide.locate(point, Vec3::Z).unwrap().leaf, horizon) as f64
-        };
-        // The band's mean: 50 over 0.02 of its 0.125 in z (uniform in solid angle), 1 above.
-        let exact = (0.02 * 50.0 + 0.105) / 0.125;
-        let (low, high) = (q(0.1, true), q(0.9, true));
-        for (p_guide, learned) in [(0.1, low), (0.9, high)] {
-            assert!((learned / exact - 1.0).abs() < 0.06, "p_guide {p_guide}: Q {learned}, exact mean {exact}");
-        }
-        let unweighted = q(0.1, false);
-        assert!(unweighted / exact < 0.9, "unweighted Q {unweighted}, exact mean {exact}");
-    }
-
-    #[test]
-    fn busy_leaves_split_within_the_budget_and_children_inherit_q() {
-        let mut guide = volume(200 << 10);
-        let leaves = guide.leaf_count();
-        let hot = Vec3::new(0.3, 0.3, 0.3);
-        let region = guide.locate(hot, Vec3::Y).unwrap();
-        let mut rng = Pcg32::new(2, 2);
-        for round in 0..12 {
-            for _ in 0..20_000 {
-                let region =
-                    guide.locate(hot + 0.05 * (rng.next_vec2().extend(rng.next_f32()) - 0.5), Vec3::Y).unwrap();
-                let d = guide.sample(region, rng.next_vec2()).direction;
-                guide.update(region, d, 1.0 + d.x.max(0.0));
-            }
-            guide.rebuild_sampling();
-            assert!(guide.memory_bytes() <= 200 << 10, "round {round}: {} bytes", guide.memory_bytes());
-            assert!(guide.validate().is_ok());
-        }
-        assert!(guide.leaf_count() > leaves, "no leaf split");
-        // The busy corner is now covered by a smaller leaf than the one it started in,
-        // whose table still knows what its ancestors learned.
-        let child = guide.locate(hot, Vec3::Y).unwrap();
-        assert!(child.leaf != region.leaf || guide.node_count() > leaves);
-        let x = guide.settings().layout.patch_of(Vec3::new(0.9, 0.3, 0.3)).unwrap();
-        assert!(guide.q(child.leaf, x) > 1.5, "{}", guide.q(child.leaf, x));
-        // A far corner nobody visited kept one leaf.
-        let far = guide.locate(Vec3::new(1.9, 0.9, 0.9), Vec3::Y).unwrap();
-        assert_eq!(guide.q(far.leaf, x), guide.settings().initial_q);
-    }
-
-    #[test]
-    fn splits_pending_foretells_the_rebuild_and_capacity_bounds_the_growth() {
-        let mut guide = volume(160 << 10);
-        let (max_leaves, max_nodes) = guide.capacity();
-        assert!(max_leaves > guide.leaf_count() && max_nodes > guide.node_count());
-        let mut rng = Pcg32::new(7, 7);
-        let mut splits = 0;
-        for _ in 0..10 {
-            assert!(!guide.splits_pending() || guide.capacity().0 > guide.leaf_count());
-            for _ in 0..30_000 {
-                let p = Vec3::new(0.2, 0.2, 0.2) + 0.1 * Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
-                let region = guide.locate(p, Vec3::Y).unwrap();
-                let d = guide.sample(region, rng.next_vec2()).direction;
-                guide.update(region, d, 1.0);
-            }
-            let (pending, leaves) = (guide.splits_pending(), guide.leaf_count());
-            let copy = guide.clone();
-            guide.rebuild_sampling();
-            assert_eq!(pending, guide.leaf_count() > leaves);
-            splits += pending as u32;
-            assert!(guide.leaf_count() <= max_leaves && guide.node_count() <= max_nodes);
-            // A clone rebuilds to the same state as the original.
-            let mut copy = copy;
-            copy.rebuild_sampling();
-            assert_eq!(copy.to_bytes(), guide.to_bytes());
-        }
-        assert!(splits > 0, "no leaf split");
-    }
-
-    #[test]
-    fn folding_keeps_the_pdf_exact_on_the_normals_side() {
-        let mut guide = volume(64 << 10);
-        let normal = Vec3::new(0.3, 0.8, -0.52).normalize();
-        let region = guide.locate(Vec3::splat(0.5), normal).unwrap();
-        let mut rng = Pcg32::new(5, 5);
-        let values: Vec<f32> = (0..guide.patch_count()).map(|_| rng.next_f32() * 3.0).collect();
-        guide.set_q_values(region.leaf, &values);
-        guide.rebuild_sampling();
-        let distribution = guide.distribution(region);
-        let total = pdf_integral(&|d| distribution.pdf(d), normal, 64, 6);
-        assert!((total - 1.0).abs() < 1e-3, "∫ = {total}");
-        let report = chi_square_test(&distribution, normal, &ChiSquareSettings::default());
-        assert!(report.passes(0.01), "{report:?}");
-        assert_eq!(distribution.pdf(-normal), 0.0);
-    }
-
-    #[test]
-    fn the_lambertian_estimate_sees_only_the_upper_hemisphere() {
-        let mut guide = volume(64 << 10);
-        let region = guide.locate(Vec3::splat(0.5), Vec3::Z).unwrap();
-        // Q = 1 above the xy plane, 100 below: a Lambertian at +z sees ≈ albedo·1.
-        let layout = guide.settings().layout;
-        let values: Vec<f32> = (0..guide.patch_count())
-            .map(|k| if layout.direction_in_patch(k, Vec2::splat(0.5)).z > 0.0 { 1.0 } else { 100.0 })
-            .collect();
-        guide.set_q_values(region.leaf, &values);
-        guide.rebuild_sampling();
-        let bsdf = crate::scattering::Lambertian { normal: Vec3::Z, albedo: 0.5 };
-        let estimate = guide.estimate_integral(region, Vec3::Z, &bsdf, Vec2::splat(0.5));
-        assert!((estimate - 0.5).abs() < 0.02, "{estimate}");
-    }
-}
+mod tests;

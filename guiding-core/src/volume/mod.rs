@@ -2,6 +2,7 @@
 //! at the leaves of an octree over the scene, found by position, split where updates
 //! concentrate until the byte budget is spent.
 
+mod distribution;
 mod guide;
 mod irradiance_sh;
 mod merge;
@@ -9,7 +10,8 @@ mod serialize;
 mod settings;
 mod sphere_layout;
 
-pub use guide::{IrradianceVolume, VolumeDistribution, VolumeRegion};
+pub use distribution::VolumeDistribution;
+pub use guide::{IrradianceVolume, VolumeRegion};
 pub use irradiance_sh::SH_NORMALIZATION;
 pub use settings::IrradianceVolumeSettings;
 pub use sphere_layout::SphereLayout;
