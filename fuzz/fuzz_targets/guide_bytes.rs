@@ -84,6 +84,8 @@ impl FuzzedGuide for SpatialDirectionalTree {
             max_directional_depth: 1 + p(1) % 20,
             uniform_mix: if p(2) % 2 == 0 { 0.0 } else { 0.05 },
             fold_to_hemisphere: p(3) % 2 == 0,
+            cosine_product: p(4) % 2 == 0,
+            mixed_normal_share: if p(5) % 2 == 0 { 0.0 } else { 0.97 },
             ..Default::default()
         };
         SpatialDirectionalTree::new(Vec3::ZERO, Vec3::ONE, settings).expect("a valid small tree")

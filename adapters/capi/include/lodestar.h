@@ -301,6 +301,12 @@ typedef struct LodestarTreeConfig {
   float learning_rate_parameter;
   // One of `LodestarIntegralEstimator` (`PATH_CONTINUATION` by default).
   uint32_t integral_estimator;
+  // A leaf also splits when no world axis holds this share of its epoch's records'
+  // normals, [0, 1]; 0 never.
+  float mixed_normal_share;
+  // 1: where the normal lies along a leaf's axis, sample the tree's density times
+  // cos θ; 0: the density alone.
+  uint32_t cosine_product;
 } LodestarTreeConfig;
 
 // Everything that shapes a guide. Fill it with `lodestar_guide_config_default`, then

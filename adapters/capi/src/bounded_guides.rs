@@ -177,6 +177,12 @@ pub struct LodestarTreeConfig {
     pub learning_rate_parameter: f32,
     /// One of `LodestarIntegralEstimator` (`PATH_CONTINUATION` by default).
     pub integral_estimator: u32,
+    /// A leaf also splits when no world axis holds this share of its epoch's records'
+    /// normals, [0, 1]; 0 never.
+    pub mixed_normal_share: f32,
+    /// 1: where the normal lies along a leaf's axis, sample the tree's density times
+    /// cos θ; 0: the density alone.
+    pub cosine_product: u32,
 }
 
 impl LodestarTreeConfig {
@@ -195,6 +201,8 @@ impl LodestarTreeConfig {
             learning_rate,
             learning_rate_parameter,
             integral_estimator,
+            mixed_normal_share: s.mixed_normal_share,
+            cosine_product: s.cosine_product as u32,
         }
     }
 
@@ -204,11 +212,13 @@ impl LodestarTreeConfig {
             budget_bytes: budget(self.budget_bytes)?,
             spatial_threshold: finite(self.spatial_threshold, "config->spatial_threshold")?,
             min_split_records: self.min_split_records,
+            mixed_normal_share: finite(self.mixed_normal_share, "config->mixed_normal_share")?,
             flux_fraction: finite(self.flux_fraction, "config->flux_fraction")?,
             max_directional_depth: self.max_directional_depth,
             max_spatial_depth: self.max_spatial_depth,
             uniform_mix: finite(self.uniform_mix, "config->uniform_mix")?,
             fold_to_hemisphere: flag(self.fold_to_hemisphere, "fold_to_hemisphere")?,
+            cosine_product: flag(self.cosine_product, "cosine_product")?,
             update_rule: update_rule_from_c(self.learning_rate, self.learning_rate_parameter, self.integral_estimator)?,
         };
         settings.validate().map_err(|e| Failure::from_core(&e, "config"))?;
@@ -387,5 +397,10 @@ mod tests {
         tree.fold_to_hemisphere = 1;
         tree.flux_fraction = f32::NAN;
         assert_eq!(tree.settings().unwrap_err().status, LodestarStatus::NonFiniteArgument);
+        tree.flux_fraction = 0.01;
+        tree.mixed_normal_share = 1.5;
+        let failure = tree.settings().unwrap_err();
+        assert_eq!(failure.status, LodestarStatus::InvalidConfig, "{}", failure.message);
+        assert!(failure.message.contains("mixed_normal_share"), "{}", failure.message);
     }
 }

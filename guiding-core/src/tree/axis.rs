@@ -70,6 +70,22 @@ impl LeafCounts {
         }
     }
 
+    /// Whether the leaf holds at least `least` records and neither one world axis nor
+    /// the off-axis normals together have `share` of them.
+    pub(crate) fn mixed(&self, share: f64, least: u32) -> bool {
+        let v = self.values();
+        let records = v[0] as u64 + v[4] as u64;
+        if records < least as u64 {
+            return false;
+        }
+        let along: [u64; 3] = core::array::from_fn(|a| v[1 + a] as u64 + v[5 + a] as u64);
+        // Normals along no axis (a slope, a curve) are a class of their own: splitting
+        // cannot align them, only part them from the aligned ones.
+        let along_none = records.saturating_sub(along.iter().sum::<u64>());
+        let best = along.into_iter().max().unwrap_or(0).max(along_none);
+        (best as f64) < share * records as f64
+    }
+
     /// The axis that more than half of the records in `halves` lie along, if any.
     pub(crate) fn majority_axis(&self, halves: &[usize]) -> Option<u32> {
         let v = self.values();

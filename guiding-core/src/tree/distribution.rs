@@ -1,13 +1,14 @@
 //! [`TreeDistribution`]: the sampling distribution of one region of the tree, kept to
 //! the normal's hemisphere: the square's half on the normal's side where the normal lies
 //! along the leaf's axis (one descent per sample or pdf), the sphere folded onto the
-//! hemisphere elsewhere (two), mixed with a uniform share.
+//! hemisphere elsewhere (two), mixed with a uniform share. In the half, optionally by
+//! the tree's density times cos θ ([`super::cosine`]).
 
 use core::f32::consts::PI;
 
 use glam::{Vec2, Vec3};
 
-use super::quadtree::{self, QuadNode};
+use super::quadtree::{self, CellProbabilities, QuadNode};
 use super::square::{direction_to_square, from_axis_frame, square_to_direction, to_axis_frame, SQUARE_TO_SOLID_ANGLE};
 use crate::distribution::{DirectionSample, DirectionalDistribution, MIN_SAMPLED_COS_THETA};
 use crate::frame::Frame;
@@ -24,7 +25,8 @@ const MIN_HALF_MASS: f32 = 1e-6;
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum HemisphereMode {
     /// The normal lies along the leaf's axis: the quadtree restricted to the square's
-    /// half on the normal's side (`high`: polar z ≥ 0), renormalised by `1 / mass`.
+    /// half on the normal's side (`high`: polar z ≥ 0), renormalised by `1 / mass`
+    /// (by the cosine product's cell probabilities where the distribution has them).
     Half { high: bool, inverse_mass: f32 },
     /// The normal does not: the quadtree's sphere mirrored onto the hemisphere.
     Fold,
@@ -39,6 +41,9 @@ enum HemisphereMode {
 #[derive(Clone, Copy, Debug)]
 pub struct TreeDistribution<'a> {
     nodes: &'a [QuadNode],
+    /// The cosine product's cell probabilities over `nodes`, which the half is sampled
+    /// by where present.
+    cosine: Option<&'a [[f32; 4]]>,
     root: u32,
     axis: u32,
     normal: Vec3,
@@ -49,14 +54,27 @@ pub struct TreeDistribution<'a> {
 impl<'a> TreeDistribution<'a> {
     /// The distribution of the quadtree at `root` of `nodes`, built around world axis
     /// `axis`, for a surface of unit `normal`: `fold` keeps it to the normal's hemisphere,
-    /// `uniform_mix` of it spread uniformly there.
-    pub(crate) fn new(nodes: &'a [QuadNode], root: u32, axis: u32, normal: Vec3, uniform_mix: f32, fold: bool) -> Self {
+    /// `uniform_mix` of it spread uniformly there; `cosine` (the cosine product's cell
+    /// probabilities, indexed as `nodes`) samples the half of an aligned normal by it.
+    pub(crate) fn new(
+        nodes: &'a [QuadNode],
+        cosine: Option<&'a [[f32; 4]]>,
+        root: u32,
+        axis: u32,
+        normal: Vec3,
+        uniform_mix: f32,
+        fold: bool,
+    ) -> Self {
         let along = normal[axis as usize];
+        let cosine = cosine.filter(|c| c.len() == nodes.len());
         let mode = if !fold {
             HemisphereMode::Sphere
         } else if along.abs() >= ALIGNED_COS {
             let high = along > 0.0;
-            let mass = quadtree::half_mass(nodes, root, high);
+            let mass = match cosine {
+                Some(cosine) => quadtree::half_mass(cosine, root, high),
+                None => quadtree::half_mass(nodes, root, high),
+            };
             if mass >= MIN_HALF_MASS {
                 HemisphereMode::Half { high, inverse_mass: 1.0 / mass }
             } else {
@@ -65,7 +83,29 @@ impl<'a> TreeDistribution<'a> {
         } else {
             HemisphereMode::Fold
         };
-        Self { nodes, root, axis, normal, uniform_mix, mode }
+        Self { nodes, cosine, root, axis, normal, uniform_mix, mode }
+    }
+
+    /// The density of the half's cell probabilities (the cosine product's, or the
+    /// tree's own) at square point `p`, relative to uniform over the whole square.
+    #[inline]
+    fn half_density(&self, p: Vec2) -> f32 {
+        match self.cosine {
+            Some(cosine) => quadtree::square_density_by(self.nodes, cosine, self.root, p),
+            None => quadtree::square_density(self.nodes, self.root, p),
+        }
+    }
+
+    /// A point of the half `high` drawn by its cell probabilities, and its density.
+    #[inline]
+    fn sample_half(&self, u: Vec2, high: bool) -> (Vec2, f32) {
+        fn draw<P: CellProbabilities + ?Sized>(d: &TreeDistribution<'_>, p: &P, u: Vec2, high: bool) -> (Vec2, f32) {
+            quadtree::sample_square_by(d.nodes, p, d.root, u, Some(high))
+        }
+        match self.cosine {
+            Some(cosine) => draw(self, cosine, u, high),
+            None => draw(self, self.nodes, u, high),
+        }
     }
 
     /// The quadtree's own density at `direction`, per steradian (on the whole sphere).
@@ -105,7 +145,7 @@ impl<'a> TreeDistribution<'a> {
                 if (p.x >= 0.5) != high {
                     return 0.0;
                 }
-                quadtree::square_density(self.nodes, self.root, p) * inverse_mass / SQUARE_TO_SOLID_ANGLE
+                self.half_density(p) * inverse_mass / SQUARE_TO_SOLID_ANGLE
             }
             HemisphereMode::Fold => {
                 let c = direction.dot(self.normal);
@@ -131,12 +171,12 @@ impl DirectionalDistribution for TreeDistribution<'_> {
         let u = Vec2::new(((u.x - mix) / (1.0 - mix)).min(super::square::ONE_BELOW), u.y);
         if let HemisphereMode::Half { high, inverse_mass } = self.mode {
             // The descent that draws the point gives its density: no second descent.
-            let (mut p, mut density) = quadtree::sample_square(self.nodes, self.root, u, Some(high));
+            let (mut p, mut density) = self.sample_half(u, high);
             // Kept off the horizon, as the other samplers keep cos θ ≥ MIN_SAMPLED_COS_THETA.
             let edge = 0.5 * MIN_SAMPLED_COS_THETA;
             if (p.x - 0.5).abs() < edge {
                 p.x = if high { 0.5 + edge } else { 0.5 - edge };
-                density = quadtree::square_density(self.nodes, self.root, p);
+                density = self.half_density(p);
             }
             let direction = from_axis_frame(square_to_direction(p), self.axis);
             let tree = density * inverse_mass / SQUARE_TO_SOLID_ANGLE;

@@ -106,6 +106,9 @@ pub struct SpatialDirectionalTree {
     pub(crate) quad: Vec<QuadNode>,
     /// Building sums Σ target/pdf, four per quadtree node (f32 bits).
     pub(crate) sums: Vec<AtomicU32>,
+    /// Per quadtree node, its cells' probabilities under the cosine product (derived
+    /// from `quad` by [`refresh_cosine`](Self::refresh_cosine); never serialized).
+    pub(crate) cosine: Vec<[f32; 4]>,
     pub(crate) epoch: u32,
     /// Records of the completed epochs.
     pub(crate) accepted_before: u64,
@@ -142,6 +145,7 @@ impl SpatialDirectionalTree {
             leaf_counts: alloc::vec![LeafCounts::default()],
             quad: alloc::vec![QuadNode::UNIFORM],
             sums: (0..4).map(|_| atomic_f32::new(0.0)).collect(),
+            cosine: alloc::vec![[0.25; 4]],
             epoch: 0,
             accepted_before: 0,
             rejected_non_finite: AtomicU32::new(0),
@@ -230,6 +234,13 @@ impl SpatialDirectionalTree {
         self.quad = out;
         self.sums = (0..self.quad.len() * 4).map(|_| atomic_f32::new(0.0)).collect();
         self.leaf_counts = (0..self.leaves.len()).map(|_| LeafCounts::default()).collect();
+        self.refresh_cosine();
+    }
+
+    /// Recomputes the cosine product's cell probabilities from the quadtrees: after
+    /// every change to them.
+    pub(crate) fn refresh_cosine(&mut self) {
+        self.cosine = super::cosine::cosine_probabilities(&self.quad, self.leaves.iter().map(|leaf| leaf.root));
     }
 
     /// Bytes held by the trees and their building statistics.
@@ -252,14 +263,23 @@ impl SpatialDirectionalTree {
 
     /// Splits every leaf whose records (over all epochs, halved at each split) pass the
     /// threshold, heaviest first, as long as the budget holds; halves keep splitting
-    /// while their share does.
+    /// while their share does. A leaf whose epoch's normals are mixed (the settings'
+    /// `mixed_normal_share`) splits once, whatever its count.
     fn split_busy_leaves(&mut self, threshold: f64) {
+        let (share, least) = (self.settings.mixed_normal_share as f64, self.settings.min_split_records);
         let mut queue: Vec<(u32, f64)> = self
             .leaves
             .iter()
+            .zip(&self.leaf_counts)
             .enumerate()
-            .filter(|(_, leaf)| leaf.weight > threshold)
-            .map(|(index, leaf)| (index as u32, leaf.weight))
+            .filter_map(|(index, (leaf, counts))| {
+                if leaf.weight > threshold {
+                    Some((index as u32, leaf.weight))
+                } else {
+                    // Queued at the threshold itself: its halves do not split again now.
+                    counts.mixed(share, least).then_some((index as u32, threshold))
+                }
+            })
             .collect();
         queue.sort_by(|a, b| b.1.total_cmp(&a.1));
         let (mut next, mut orphaned) = (0, false);
@@ -351,6 +371,7 @@ impl Clone for SpatialDirectionalTree {
             leaf_counts: self.leaf_counts.clone(),
             quad: self.quad.clone(),
             sums: copy(&self.sums),
+            cosine: self.cosine.clone(),
             epoch: self.epoch,
             accepted_before: self.accepted_before,
             rejected_non_finite: AtomicU32::new(self.rejected_non_finite.load(Ordering::Relaxed)),
@@ -375,7 +396,16 @@ impl Guide for SpatialDirectionalTree {
     fn distribution(&self, region: TreeRegion) -> TreeDistribution<'_> {
         let (root, axis) = self.leaves.get(region.leaf as usize).map_or((0, 2), |l| (l.root, l.axis));
         let settings = &self.settings;
-        TreeDistribution::new(&self.quad, root, axis, region.normal, settings.uniform_mix, settings.fold_to_hemisphere)
+        let cosine = settings.cosine_product.then_some(self.cosine.as_slice());
+        TreeDistribution::new(
+            &self.quad,
+            cosine,
+            root,
+            axis,
+            region.normal,
+            settings.uniform_mix,
+            settings.fold_to_hemisphere,
+        )
     }
 
     /// Records `target` as if `direction` had been drawn uniformly over the sphere
@@ -495,6 +525,7 @@ impl Guide for SpatialDirectionalTree {
         self.split_busy_leaves(self.settings.split_threshold(total_weight));
         self.sums = (0..self.quad.len() * 4).map(|_| atomic_f32::new(0.0)).collect();
         self.leaf_counts = (0..self.leaves.len()).map(|_| LeafCounts::default()).collect();
+        self.refresh_cosine();
     }
 
     fn stats(&self) -> GuideStats {
@@ -644,6 +675,40 @@ mod tests {
         let a = tree.locate(Vec3::new(-0.9, -1.0, -0.9), Vec3::Y).unwrap();
         let b = tree.locate(Vec3::new(0.9, 1.0, 0.9), Vec3::Y).unwrap();
         assert_ne!(a.leaf, b.leaf);
+    }
+
+    #[test]
+    fn leaves_whose_normals_disagree_split_whatever_their_count() {
+        // A corner: a floor (normal +y) and a wall (normal +x) share the one leaf, with
+        // far too few records for the count rule (c huge) to split it.
+        let corner = |share: f32, normals: [Vec3; 2]| {
+            let settings = SpatialDirectionalTreeSettings {
+                spatial_threshold: 1e6,
+                min_split_records: 100,
+                mixed_normal_share: share,
+                ..Default::default()
+            };
+            let mut tree = tree(settings);
+            let mut rng = Pcg32::new(4, 4);
+            for _ in 0..3 {
+                for i in 0..2000 {
+                    let p = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - 1.0;
+                    let normal = normals[i % 2];
+                    let region = tree.locate(p, normal).unwrap();
+                    tree.update_sampled(region, normal, 1.0, 1.0);
+                }
+                tree.rebuild_sampling();
+                tree.validate().unwrap();
+            }
+            tree.leaf_count()
+        };
+        // One split per refit while mixed: 2, 4, then 8 leaves (each half stays a corner).
+        assert_eq!(corner(0.97, [Vec3::Y, Vec3::X]), 8);
+        assert_eq!(corner(0.0, [Vec3::Y, Vec3::X]), 1, "0 turns the rule off");
+        // One surface, or off-axis normals of one slope, are not mixed.
+        assert_eq!(corner(0.97, [Vec3::Y, Vec3::Y]), 1);
+        let slope = [Vec3::new(0.0, 0.8, 0.6), Vec3::new(0.6, 0.8, 0.0)];
+        assert_eq!(corner(0.97, slope), 1);
     }
 
     #[test]

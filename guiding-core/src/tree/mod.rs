@@ -8,8 +8,12 @@
 //!   for such a normal, sampling and the pdf descend the leaf's quadtree once each, in
 //!   the half of the square above the surface; for other normals the sphere folds onto
 //!   the hemisphere (the pdf descends twice). A record is one descent and lock-free adds.
+//! - Where the normal lies along the axis, the half is sampled by the tree's density
+//!   times cos θ (the settings' `cosine_product`), from a second set of cell
+//!   probabilities computed at each refit.
 
 mod axis;
+mod cosine;
 mod distribution;
 mod guide;
 mod merge;

@@ -27,8 +27,32 @@ impl QuadNode {
     pub(crate) const UNIFORM: QuadNode = QuadNode { probability: [0.25; 4], child: [0; 4] };
 }
 
-/// Bytes a node costs: the node and its four building sums.
-pub(crate) const NODE_BYTES: usize = core::mem::size_of::<QuadNode>() + 4 * core::mem::size_of::<AtomicU32>();
+/// Bytes a node costs: the node, its four building sums and its cells' probabilities
+/// under the cosine product ([`super::cosine`]).
+pub(crate) const NODE_BYTES: usize =
+    core::mem::size_of::<QuadNode>() + 4 * core::mem::size_of::<AtomicU32>() + core::mem::size_of::<[f32; 4]>();
+
+/// The probabilities of a node's four cells that a descent reads: the tree's own
+/// ([`QuadNode::probability`]), or another set over the same nodes, indexed alike (the
+/// cosine product's).
+pub(crate) trait CellProbabilities {
+    /// The four cells' probabilities at arena index `node`.
+    fn cells(&self, node: usize) -> [f32; 4];
+}
+
+impl CellProbabilities for [QuadNode] {
+    #[inline]
+    fn cells(&self, node: usize) -> [f32; 4] {
+        self[node].probability
+    }
+}
+
+impl CellProbabilities for [[f32; 4]] {
+    #[inline]
+    fn cells(&self, node: usize) -> [f32; 4] {
+        self[node]
+    }
+}
 
 /// The cell of `p` within a node, and `p` in that cell's own unit square.
 #[inline]
@@ -65,11 +89,23 @@ fn choose(u: &mut f32, a: f32, b: f32) -> bool {
 /// at each level (no further random numbers). `half` restricts the draw to the half
 /// u ≥ 1/2 (`Some(true)`: polar z ≥ 0) or u < 1/2 (`Some(false)`); the density returned
 /// is the whole tree's, so the restricted density is it over [`half_mass`].
-pub(crate) fn sample_square(nodes: &[QuadNode], root: u32, mut u: Vec2, half: Option<bool>) -> (Vec2, f32) {
+pub(crate) fn sample_square(nodes: &[QuadNode], root: u32, u: Vec2, half: Option<bool>) -> (Vec2, f32) {
+    sample_square_by(nodes, nodes, root, u, half)
+}
+
+/// [`sample_square`] by the cell probabilities `probabilities` over `nodes`.
+#[inline]
+pub(crate) fn sample_square_by<P: CellProbabilities + ?Sized>(
+    nodes: &[QuadNode],
+    probabilities: &P,
+    root: u32,
+    mut u: Vec2,
+    half: Option<bool>,
+) -> (Vec2, f32) {
     let (mut origin, mut size, mut node, mut density) = (Vec2::ZERO, 1.0f32, root as usize, 1.0f32);
     let mut forced = half;
     loop {
-        let probability = nodes[node].probability;
+        let probability = probabilities.cells(node);
         let [p0, p1, p2, p3] = probability;
         let ix = match forced.take() {
             Some(high) => high,
@@ -95,8 +131,8 @@ pub(crate) fn sample_square(nodes: &[QuadNode], root: u32, mut u: Vec2, half: Op
 
 /// The share of the tree's mass in the half u ≥ 1/2 (`high`) or u < 1/2 of the square.
 #[inline]
-pub(crate) fn half_mass(nodes: &[QuadNode], root: u32, high: bool) -> f32 {
-    let [p0, p1, p2, p3] = nodes[root as usize].probability;
+pub(crate) fn half_mass<P: CellProbabilities + ?Sized>(probabilities: &P, root: u32, high: bool) -> f32 {
+    let [p0, p1, p2, p3] = probabilities.cells(root as usize);
     if high {
         p1 + p3
     } else {
@@ -107,11 +143,22 @@ pub(crate) fn half_mass(nodes: &[QuadNode], root: u32, high: bool) -> f32 {
 /// The tree's density at square point `p` ∈ [0, 1)², relative to the uniform density
 /// (so it integrates to one over the square).
 #[inline]
-pub(crate) fn square_density(nodes: &[QuadNode], root: u32, mut p: Vec2) -> f32 {
+pub(crate) fn square_density(nodes: &[QuadNode], root: u32, p: Vec2) -> f32 {
+    square_density_by(nodes, nodes, root, p)
+}
+
+/// [`square_density`] by the cell probabilities `probabilities` over `nodes`.
+#[inline]
+pub(crate) fn square_density_by<P: CellProbabilities + ?Sized>(
+    nodes: &[QuadNode],
+    probabilities: &P,
+    root: u32,
+    mut p: Vec2,
+) -> f32 {
     let (mut density, mut node) = (1.0f32, root as usize);
     loop {
         let (cell, q) = descend(p);
-        density *= 4.0 * nodes[node].probability[cell];
+        density *= 4.0 * probabilities.cells(node)[cell];
         match nodes[node].child[cell] {
             0 => return density,
             child => (node, p) = (child as usize, q),

@@ -3,8 +3,10 @@
 //!
 //! ```text
 //! "LODESTAR" · u32 version · u32 tag 4
-//! settings: u64 budget · f32 c · u32 min split records · f32 ρ · u32 directional depth
-//!           · u32 spatial depth · f32 uniform mix · u32 fold · update rule (12 bytes)
+//! settings: u64 budget · f32 c · u32 min split records · f32 mixed normal share · f32 ρ
+//!           · u32 directional depth
+//!           · u32 spatial depth · f32 uniform mix · u32 fold · u32 cosine product
+//!           · update rule (12 bytes)
 //! vec3 low · vec3 extent · u32 epoch · u64 records before · u32 rejected NaN/∞ · u32 rejected < 0
 //! u32 spatial root · u32 spatial nodes · u32 leaves · u32 directional nodes
 //! spatial node × n: u32 low child · u32 high child · u32 axis
@@ -28,7 +30,7 @@ use crate::bytes::{invalid_field, open_guide_bytes, ByteWriter};
 use crate::error::Error;
 
 /// Version of the byte format.
-pub const FORMAT_VERSION: u32 = 2;
+pub const FORMAT_VERSION: u32 = 3;
 /// Structure tag of a spatial × directional tree.
 pub const STRUCTURE_TAG: u32 = 4;
 
@@ -46,11 +48,13 @@ pub(crate) fn to_bytes(tree: &SpatialDirectionalTree) -> Vec<u8> {
     w.put_u64(s.budget_bytes as u64);
     w.put_f32(s.spatial_threshold);
     w.put_u32(s.min_split_records);
+    w.put_f32(s.mixed_normal_share);
     w.put_f32(s.flux_fraction);
     w.put_u32(s.max_directional_depth);
     w.put_u32(s.max_spatial_depth);
     w.put_f32(s.uniform_mix);
     w.put_u32(s.fold_to_hemisphere as u32);
+    w.put_u32(s.cosine_product as u32);
     w.put_update_rule(&s.update_rule);
     for v in [tree.low, tree.extent] {
         v.to_array().into_iter().for_each(|c| w.put_f32(c));
@@ -96,6 +100,7 @@ pub(crate) fn from_bytes(bytes: &[u8]) -> Result<SpatialDirectionalTree, Error> 
         budget_bytes: usize::try_from(budget_bytes).map_err(|_| invalid_field("budget_bytes", 0, "fits in usize"))?,
         spatial_threshold: r.f32()?,
         min_split_records: r.u32()?,
+        mixed_normal_share: r.f32()?,
         flux_fraction: r.f32()?,
         max_directional_depth: r.u32()?,
         max_spatial_depth: r.u32()?,
@@ -104,6 +109,11 @@ pub(crate) fn from_bytes(bytes: &[u8]) -> Result<SpatialDirectionalTree, Error> 
             0 => false,
             1 => true,
             _ => return Err(invalid_field("fold_to_hemisphere", 0, "0 or 1")),
+        },
+        cosine_product: match r.u32()? {
+            0 => false,
+            1 => true,
+            _ => return Err(invalid_field("cosine_product", 0, "0 or 1")),
         },
         update_rule: r.update_rule()?,
     };
@@ -165,7 +175,7 @@ pub(crate) fn from_bytes(bytes: &[u8]) -> Result<SpatialDirectionalTree, Error> 
         }
     }
     r.finish()?;
-    let tree = SpatialDirectionalTree {
+    let mut tree = SpatialDirectionalTree {
         settings,
         low,
         extent,
@@ -176,12 +186,14 @@ pub(crate) fn from_bytes(bytes: &[u8]) -> Result<SpatialDirectionalTree, Error> 
         leaf_counts,
         quad,
         sums,
+        cosine: Vec::new(),
         epoch,
         accepted_before,
         rejected_non_finite: AtomicU32::new(rejected_non_finite),
         rejected_negative: AtomicU32::new(rejected_negative),
     };
     validate(&tree)?;
+    tree.refresh_cosine();
     Ok(tree)
 }
 

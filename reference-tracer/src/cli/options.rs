@@ -204,6 +204,14 @@ pub struct TraceOptions {
     /// Whether the tree's distributions fold onto the normal's hemisphere (on, off).
     #[arg(long, value_parser = parse_switch)]
     pub(super) tree_fold: Option<bool>,
+    /// The tree's mixed-normal share, in [0, 1]: a leaf also splits when no world axis
+    /// holds this share of its records' normals (0: never). Default 0.97 (guiding-core's).
+    #[arg(long)]
+    pub(super) tree_mixed_share: Option<f32>,
+    /// Whether the tree samples an aligned normal's half by its density times cos θ (on,
+    /// off). Default on (guiding-core's).
+    #[arg(long, value_parser = parse_switch)]
+    pub(super) tree_cosine: Option<bool>,
     /// Patches per hemisphere as U×V, e.g. 8x16 (for --guide volume: bands of cos θ ×
     /// sectors of φ over the whole sphere).
     #[arg(long, default_value = "8x16", value_parser = parse_patches)]

@@ -78,6 +78,8 @@ impl TraceOptions {
                     spatial_threshold: self.tree_threshold.unwrap_or(defaults.spatial_threshold),
                     flux_fraction: self.tree_flux_fraction.unwrap_or(defaults.flux_fraction),
                     fold_to_hemisphere: self.tree_fold.unwrap_or(defaults.fold_to_hemisphere),
+                    mixed_normal_share: self.tree_mixed_share.unwrap_or(defaults.mixed_normal_share),
+                    cosine_product: self.tree_cosine.unwrap_or(defaults.cosine_product),
                     ..defaults
                 };
                 settings.validate().map_err(|e| format!("tree guide: {e}"))?;

@@ -511,6 +511,10 @@ static void bounded_structure_errors(void) {
             EXPECT(lodestar_guide_create_tree(&tree, low, high, &guide), LODESTAR_STATUS_NON_FINITE_ARGUMENT,
                    "flux_fraction");
             tree.flux_fraction = 0.01f;
+            tree.mixed_normal_share = NAN;
+            EXPECT(lodestar_guide_create_tree(&tree, low, high, &guide), LODESTAR_STATUS_NON_FINITE_ARGUMENT,
+                   "mixed_normal_share");
+            tree.mixed_normal_share = 0.97f;
             tree.integral_estimator = 7;
             EXPECT(lodestar_guide_create_tree(&tree, low, high, &guide), LODESTAR_STATUS_UNKNOWN_ENUM_VALUE,
                    "integral_estimator");
