@@ -134,7 +134,8 @@ pub(super) fn run_compare(args: &CompareArgs) -> Result<(), String> {
         )?;
         session.resize(options.resolution);
         session.device = compared.device;
-        session.learners.focal_settings = options.focal_settings(method)?;
+        let structure = session.learners.guide.as_ref().map(|guide| guide.structure());
+        session.learners.focal_settings = options.focal_settings(method, structure)?;
         session.learners.guide_share_cost = options.guide_share_cost;
         eprintln!("{name}: plan: {}", session.plan.describe());
         let camera = &session.scene.camera;
@@ -146,7 +147,7 @@ pub(super) fn run_compare(args: &CompareArgs) -> Result<(), String> {
         }
         eprintln!("{name}: rendering {} s", args.seconds);
         let settings = RenderSettings {
-            integrator: options.integrator(method, &session.plan),
+            integrator: options.integrator(method, &session.plan, structure),
             budget: Budget::Seconds(args.seconds),
             seed: options.seed,
             train_seconds: options.train_seconds,
