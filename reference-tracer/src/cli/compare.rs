@@ -134,8 +134,7 @@ pub(super) fn run_compare(args: &CompareArgs) -> Result<(), String> {
         )?;
         session.resize(options.resolution);
         session.device = compared.device;
-        let structure = session.learners.guide.as_ref().map(|guide| guide.structure());
-        session.learners.focal_settings = options.focal_settings(method, structure)?;
+        session.learners.focal_settings = options.focal_settings(method)?;
         session.learners.guide_share_cost = options.guide_share_cost;
         eprintln!("{name}: plan: {}", session.plan.describe());
         let camera = &session.scene.camera;
@@ -147,7 +146,7 @@ pub(super) fn run_compare(args: &CompareArgs) -> Result<(), String> {
         }
         eprintln!("{name}: rendering {} s", args.seconds);
         let settings = RenderSettings {
-            integrator: options.integrator(method, &session.plan, structure),
+            integrator: options.integrator(method, &session.plan),
             budget: Budget::Seconds(args.seconds),
             seed: options.seed,
             train_seconds: options.train_seconds,

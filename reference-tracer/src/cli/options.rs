@@ -50,12 +50,11 @@ impl GuideShare {
 /// Options shared by every command that traces paths.
 #[derive(Debug, Args, Clone)]
 pub struct TraceOptions {
-    /// The directional guide of the guided methods: auto (on the CPU the spatial ×
-    /// directional tree for guided and a hemisphere grid for the others, which measured
-    /// best for each; none where every surface is a mirror or glass; see the printed
-    /// plan), hemisphere (probes with hemispheres of patches), volume (full-sphere tables
-    /// in an adaptive octree), mixture (grid cells with vMF mixtures), tree (a spatial
-    /// binary tree of directional quadtrees), or none. compare
+    /// The directional guide of the guided methods: auto (a hemisphere grid unless every
+    /// surface is a mirror or glass; see the printed plan), hemisphere (probes with
+    /// hemispheres of patches), volume (full-sphere tables in an adaptive octree),
+    /// mixture (grid cells with vMF mixtures), tree (a spatial binary tree of
+    /// directional quadtrees), or none. compare
     /// takes several, comma-separated, and runs each guided method with each.
     #[arg(long, default_value = "auto", value_delimiter = ',', value_parser = parse_guide_choice)]
     pub(super) guide: Vec<GuideChoice>,
@@ -98,9 +97,8 @@ pub struct TraceOptions {
     /// through, learned from the segments that carried it) instead of the BSDF, at every
     /// vertex of a guided method; each region of space learns its own share up to it (the
     /// least variance among 0, 0.02, … 0.5, --focal-share-cost); p_guide + p_focal ≤ 1. 0 leaves it out.
-    /// Default 0.5 (at most 1 − p_guide) on the CPU for guided-nee; for guided (see
-    /// --nee-kickstart) 0 beside the tree (its default there) and 0.25 beside any other
-    /// structure; 0 on the GPU (which has no focal guide). 0.5 with `--guide none --p-guide 0 --schedule iterative`, at 60 s: door
+    /// Default 0.5 (at most 1 − p_guide) on the CPU for guided-nee, 0.25 for guided (see
+    /// --nee-kickstart), 0 on the GPU (which has no focal guide). 0.5 with `--guide none --p-guide 0 --schedule iterative`, at 60 s: door
     /// 160×120 0.57–0.60 × nee's relMSE, cornell 128² 1.02 ×.
     #[arg(long)]
     pub(super) p_focal: Option<f32>,

@@ -231,15 +231,14 @@ fn prepare_render(args: &RenderArgs) -> Result<(Session, RenderSettings), String
     }
     load_sampling_guides(args, &mut session)?;
     session.device = options.device;
-    let structure = session.learners.guide.as_ref().map(|guide| guide.structure());
-    session.learners.focal_settings = options.focal_settings(args.integrator, structure)?;
+    session.learners.focal_settings = options.focal_settings(args.integrator)?;
     session.learners.guide_share_cost = options.guide_share_cost;
     for warning in &session.scene.warnings {
         eprintln!("warning: {}: {warning}", args.scene.display());
     }
     eprintln!("plan: {}", session.plan.describe());
     let settings = RenderSettings {
-        integrator: options.integrator(args.integrator, &session.plan, structure),
+        integrator: options.integrator(args.integrator, &session.plan),
         budget,
         seed: options.seed,
         train_seconds: options.train_seconds,

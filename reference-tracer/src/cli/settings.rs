@@ -131,17 +131,12 @@ impl TraceOptions {
         method == Method::Guided && self.device == Device::Cpu
     }
 
-    /// The focal guide's most share when the session built the directional `structure`:
-    /// `--p-focal`, else 0.5 (at most 1 − p_guide) on the CPU and 0 on the GPU; for
-    /// guided without next-event estimation on the CPU, 0 beside the tree and 0.25
-    /// beside any other structure. The tree without it, ÷ with 0.25 (guided, 30 s, seed
-    /// 41, relMSE): door 160×120 0.71, cornell 128² 0.72, glossy 128² 0.62, many_lights
-    /// 160×120 1.02.
-    pub(super) fn p_focal(&self, method: Method, structure: Option<GuideStructure>) -> f32 {
+    /// The focal guide's most share: `--p-focal`, else 0.5 (at most 1 − p_guide) on the
+    /// CPU (0.25 for guided without next-event estimation) and 0 on the GPU.
+    pub(super) fn p_focal(&self, method: Method) -> f32 {
         match (self.p_focal, self.device) {
             (Some(p), _) => p,
             (None, Device::Gpu) => 0.0,
-            (None, _) if self.without_nee_defaults(method) && structure == Some(GuideStructure::Tree) => 0.0,
             (None, _) if self.without_nee_defaults(method) => 0.25f32.min(1.0 - self.p_guide()),
             (None, _) => 0.5f32.min(1.0 - self.p_guide()),
         }
@@ -165,12 +160,8 @@ impl TraceOptions {
         }
     }
 
-    pub(super) fn focal_settings(
-        &self,
-        method: Method,
-        structure: Option<GuideStructure>,
-    ) -> Result<FocalGuideSettings, String> {
-        let p_focal = self.p_focal(method, structure);
+    pub(super) fn focal_settings(&self, method: Method) -> Result<FocalGuideSettings, String> {
+        let p_focal = self.p_focal(method);
         if !(0.0..=1.0 - self.p_guide()).contains(&p_focal) {
             return Err(format!("--p-focal {p_focal} must be in [0, 1 − p_guide = {}]", 1.0 - self.p_guide()));
         }
@@ -219,14 +210,7 @@ impl TraceOptions {
         Ok(settings)
     }
 
-    /// The integrator's settings for `method` under `plan`, beside the directional
-    /// `structure` the session built (if any).
-    pub(super) fn integrator(
-        &self,
-        method: Method,
-        plan: &GuidePlan,
-        structure: Option<GuideStructure>,
-    ) -> IntegratorSettings {
+    pub(super) fn integrator(&self, method: Method, plan: &GuidePlan) -> IntegratorSettings {
         let guide_depth = match (self.guide_depth, self.device) {
             (Some(depth), _) => depth,
             (None, Device::Gpu) => u32::MAX,
@@ -242,7 +226,7 @@ impl TraceOptions {
             rr_depth: self.rr_depth,
             guide_probability: self.p_guide(),
             guide_depth,
-            focal_probability: if light { 0.0 } else { self.p_focal(method, structure) },
+            focal_probability: if light { 0.0 } else { self.p_focal(method) },
             focal_learning_share: self.focal_learn,
             learned_guide_share: !light && self.guide_share() == GuideShare::Learned,
             density_weighted_learning: true,
@@ -260,19 +244,6 @@ impl TraceOptions {
         }
     }
 
-    /// The structure `choice` builds for `method`: `auto` is the spatial × directional
-    /// tree for guided without next-event estimation on the CPU and the hemisphere grid
-    /// otherwise. The tree (with `--p-focal` 0, its default there) ÷ the grid (with the
-    /// focal guide at 0.25), guided, 30 s, seed 41, relMSE: door 160×120 0.82, cornell
-    /// 128² 0.61, glossy 128² 0.76, many_lights 160×120 0.91. For guided-nee the grid
-    /// with the focal guide measured better (÷ the tree at 30 s: door 0.97, cornell 0.91).
-    pub(super) fn guide_structure(&self, method: Method, choice: GuideChoice) -> Option<GuideStructure> {
-        match choice {
-            GuideChoice::Auto if self.without_nee_defaults(method) => Some(GuideStructure::Tree),
-            other => other.structure(),
-        }
-    }
-
     /// The directional guide's settings if `method` guides and `choice` is not `none`
     /// (the plan may still leave it out).
     pub(super) fn directional_guide(
@@ -280,7 +251,7 @@ impl TraceOptions {
         method: Method,
         choice: GuideChoice,
     ) -> Result<Option<DirectionalGuideSettings>, String> {
-        match self.guide_structure(method, choice) {
+        match choice.structure() {
             Some(structure) if method.uses_guide() => self.guide_settings(structure, method).map(Some),
             _ => Ok(None),
         }
@@ -368,23 +339,18 @@ mod tests {
     #[test]
     fn guided_without_nee_takes_its_own_defaults_on_the_cpu_only() {
         let cpu = options(&[]);
-        let guided = cpu.integrator(Method::Guided, &plan(), Some(GuideStructure::Tree));
+        let guided = cpu.integrator(Method::Guided, &plan());
         assert!(guided.nee_kickstart);
-        assert_eq!((guided.guide_depth, guided.focal_probability), (u32::MAX, 0.0));
-        assert_eq!(cpu.guide_structure(Method::Guided, GuideChoice::Auto), Some(GuideStructure::Tree));
-        assert_eq!(cpu.guide_structure(Method::GuidedNee, GuideChoice::Auto), Some(GuideStructure::Hemisphere));
-        let beside_grid = cpu.integrator(Method::Guided, &plan(), Some(GuideStructure::Hemisphere));
-        assert_eq!(beside_grid.focal_probability, 0.25);
+        assert_eq!((guided.guide_depth, guided.focal_probability), (u32::MAX, 0.25));
         assert_eq!(grid_integral(&cpu, Method::Guided), IntegralEstimator::PathContinuation);
-        let guided_nee = cpu.integrator(Method::GuidedNee, &plan(), Some(GuideStructure::Hemisphere));
+        let guided_nee = cpu.integrator(Method::GuidedNee, &plan());
         assert!(!guided_nee.nee_kickstart);
         assert_eq!((guided_nee.guide_depth, guided_nee.focal_probability), (1, 0.5));
         assert_eq!(grid_integral(&cpu, Method::GuidedNee), IntegralEstimator::BsdfSampled);
         assert_eq!((cpu.train_share(Method::Guided), cpu.train_share(Method::GuidedNee)), (0.5, 0.15));
         let gpu = options(&["--device", "gpu"]);
         assert_eq!(gpu.train_share(Method::Guided), 0.15);
-        assert!(!gpu.integrator(Method::Guided, &plan(), Some(GuideStructure::Hemisphere)).nee_kickstart);
-        assert_eq!(gpu.guide_structure(Method::Guided, GuideChoice::Auto), Some(GuideStructure::Hemisphere));
+        assert!(!gpu.integrator(Method::Guided, &plan()).nee_kickstart);
         assert_eq!(grid_integral(&gpu, Method::Guided), IntegralEstimator::BsdfSampled);
     }
 
@@ -403,7 +369,7 @@ mod tests {
             "0.2",
         ]);
         assert_eq!(asked.train_share(Method::Guided), 0.2);
-        let guided = asked.integrator(Method::Guided, &plan(), Some(GuideStructure::Tree));
+        let guided = asked.integrator(Method::Guided, &plan());
         assert!(!guided.nee_kickstart);
         assert_eq!((guided.guide_depth, guided.focal_probability), (2, 0.4));
         assert_eq!(grid_integral(&asked, Method::Guided), IntegralEstimator::BsdfSampled);
