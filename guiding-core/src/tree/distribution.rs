@@ -8,7 +8,7 @@ use core::f32::consts::PI;
 
 use glam::{Vec2, Vec3};
 
-use super::quadtree::{self, CellProbabilities, QuadNode};
+use super::quadtree::{self, QuadNode};
 use super::square::{direction_to_square, from_axis_frame, square_to_direction, to_axis_frame, SQUARE_TO_SOLID_ANGLE};
 use crate::distribution::{DirectionSample, DirectionalDistribution, MIN_SAMPLED_COS_THETA};
 use crate::frame::Frame;
@@ -99,12 +99,9 @@ impl<'a> TreeDistribution<'a> {
     /// A point of the half `high` drawn by its cell probabilities, and its density.
     #[inline]
     fn sample_half(&self, u: Vec2, high: bool) -> (Vec2, f32) {
-        fn draw<P: CellProbabilities + ?Sized>(d: &TreeDistribution<'_>, p: &P, u: Vec2, high: bool) -> (Vec2, f32) {
-            quadtree::sample_square_by(d.nodes, p, d.root, u, Some(high))
-        }
         match self.cosine {
-            Some(cosine) => draw(self, cosine, u, high),
-            None => draw(self, self.nodes, u, high),
+            Some(cosine) => quadtree::sample_square_by(self.nodes, cosine, self.root, u, Some(high)),
+            None => quadtree::sample_square(self.nodes, self.root, u, Some(high)),
         }
     }
 

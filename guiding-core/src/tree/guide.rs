@@ -134,7 +134,7 @@ impl SpatialDirectionalTree {
         let size = (high - low).max(Vec3::ZERO);
         let extent = size.max(Vec3::splat(size.max_element().max(1.0) * 1e-6));
         let leaf = SpatialLeaf { root: 0, flux: 0.0, weight: 0.0, parent: Parent::Root, extent, depth: 0, axis: 2 };
-        Ok(Self {
+        let mut tree = Self {
             settings,
             low: low - extent * 1e-6,
             extent: extent * (1.0 + 2e-6),
@@ -145,12 +145,14 @@ impl SpatialDirectionalTree {
             leaf_counts: alloc::vec![LeafCounts::default()],
             quad: alloc::vec![QuadNode::UNIFORM],
             sums: (0..4).map(|_| atomic_f32::new(0.0)).collect(),
-            cosine: alloc::vec![[0.25; 4]],
+            cosine: Vec::new(),
             epoch: 0,
             accepted_before: 0,
             rejected_non_finite: AtomicU32::new(0),
             rejected_negative: AtomicU32::new(0),
-        })
+        };
+        tree.refresh_cosine();
+        Ok(tree)
     }
 
     /// Forgets everything learned: one leaf over the same box, one uniform quadtree, no
@@ -237,10 +239,14 @@ impl SpatialDirectionalTree {
         self.refresh_cosine();
     }
 
-    /// Recomputes the cosine product's cell probabilities from the quadtrees: after
-    /// every change to them.
+    /// Recomputes the cosine product's cell probabilities from the quadtrees after every
+    /// change to them; none where the settings leave the product off.
     pub(crate) fn refresh_cosine(&mut self) {
-        self.cosine = super::cosine::cosine_probabilities(&self.quad, self.leaves.iter().map(|leaf| leaf.root));
+        self.cosine = if self.settings.cosine_product {
+            super::cosine::cosine_probabilities(&self.quad, self.leaves.iter().map(|leaf| leaf.root))
+        } else {
+            Vec::new()
+        };
     }
 
     /// Bytes held by the trees and their building statistics.

@@ -28,7 +28,8 @@ impl QuadNode {
 }
 
 /// Bytes a node costs: the node, its four building sums and its cells' probabilities
-/// under the cosine product ([`super::cosine`]).
+/// under the cosine product ([`super::cosine`]; counted whether or not the settings use
+/// it, so the budget does not depend on that switch).
 pub(crate) const NODE_BYTES: usize =
     core::mem::size_of::<QuadNode>() + 4 * core::mem::size_of::<AtomicU32>() + core::mem::size_of::<[f32; 4]>();
 
