@@ -86,6 +86,7 @@ impl FuzzedGuide for SpatialDirectionalTree {
             fold_to_hemisphere: p(3) % 2 == 0,
             cosine_product: p(4) % 2 == 0,
             mixed_normal_share: if p(5) % 2 == 0 { 0.0 } else { 0.97 },
+            trees_per_axis: p(6) % 2 == 0,
             ..Default::default()
         };
         SpatialDirectionalTree::new(Vec3::ZERO, Vec3::ONE, settings).expect("a valid small tree")

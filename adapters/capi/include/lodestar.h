@@ -307,6 +307,10 @@ typedef struct LodestarTreeConfig {
   // 1: where the normal lies along a leaf's axis, sample the tree's density times
   // cos θ; 0: the density alone.
   uint32_t cosine_product;
+  // 1: one spatial tree per world axis, each for the surfaces whose normal lies
+  // nearest it (surfaces facing different ways never share a leaf); 0: one spatial
+  // tree whose leaves turn to their records' normals.
+  uint32_t trees_per_axis;
 } LodestarTreeConfig;
 
 // Everything that shapes a guide. Fill it with `lodestar_guide_config_default`, then

@@ -183,6 +183,10 @@ pub struct LodestarTreeConfig {
     /// 1: where the normal lies along a leaf's axis, sample the tree's density times
     /// cos θ; 0: the density alone.
     pub cosine_product: u32,
+    /// 1: one spatial tree per world axis, each for the surfaces whose normal lies
+    /// nearest it (surfaces facing different ways never share a leaf); 0: one spatial
+    /// tree whose leaves turn to their records' normals.
+    pub trees_per_axis: u32,
 }
 
 impl LodestarTreeConfig {
@@ -203,6 +207,7 @@ impl LodestarTreeConfig {
             integral_estimator,
             mixed_normal_share: s.mixed_normal_share,
             cosine_product: s.cosine_product as u32,
+            trees_per_axis: s.trees_per_axis as u32,
         }
     }
 
@@ -219,6 +224,7 @@ impl LodestarTreeConfig {
             uniform_mix: finite(self.uniform_mix, "config->uniform_mix")?,
             fold_to_hemisphere: flag(self.fold_to_hemisphere, "fold_to_hemisphere")?,
             cosine_product: flag(self.cosine_product, "cosine_product")?,
+            trees_per_axis: flag(self.trees_per_axis, "trees_per_axis")?,
             update_rule: update_rule_from_c(self.learning_rate, self.learning_rate_parameter, self.integral_estimator)?,
         };
         settings.validate().map_err(|e| Failure::from_core(&e, "config"))?;
@@ -402,5 +408,8 @@ mod tests {
         let failure = tree.settings().unwrap_err();
         assert_eq!(failure.status, LodestarStatus::InvalidConfig, "{}", failure.message);
         assert!(failure.message.contains("mixed_normal_share"), "{}", failure.message);
+        tree.mixed_normal_share = 0.97;
+        tree.trees_per_axis = 2;
+        assert!(tree.settings().unwrap_err().message.contains("trees_per_axis"));
     }
 }

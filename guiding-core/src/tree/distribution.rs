@@ -252,12 +252,12 @@ mod tests {
         assert!((mean / (2.0 * core::f64::consts::PI) - 1.0).abs() < 0.01, "E[1/pdf] = {mean}");
     }
 
-    /// Records whose normals lie along world y turn the leaf's square to y; the region
-    /// then samples the half of the square above its surface, with the pdf the descent
-    /// gave, and E[1/pdf] is still the hemisphere's 2π.
+    /// Records whose normals lie along world y turn the leaf of a single spatial tree
+    /// to y; the region then samples the half of the square above its surface, with the
+    /// pdf the descent gave, and E[1/pdf] is still the hemisphere's 2π.
     #[test]
     fn a_leaf_turns_to_its_normals_axis_and_samples_that_half() {
-        let settings = SpatialDirectionalTreeSettings { uniform_mix: 0.0, ..Default::default() };
+        let settings = SpatialDirectionalTreeSettings { uniform_mix: 0.0, trees_per_axis: false, ..Default::default() };
         let mut tree = SpatialDirectionalTree::new(Vec3::splat(-1.0), Vec3::ONE, settings).unwrap();
         let region = tree.locate(Vec3::ZERO, Vec3::Y).unwrap();
         assert_eq!(tree.leaf_axis(region.leaf), Some(2));

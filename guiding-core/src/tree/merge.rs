@@ -75,9 +75,11 @@ impl SpatialDirectionalTree {
             return Err(Error::Incompatible { what: "records pending since the last rebuild_sampling" });
         }
         let (mut spatial, mut pieces) = (Vec::new(), Vec::new());
-        let mine = (self.spatial_root, 1.0);
-        let theirs = (other.spatial_root, 1.0);
-        let root = union_spatial([self, other], [mine, theirs], Parent::Root, &mut spatial, &mut pieces)?;
+        let mut roots = Vec::with_capacity(self.spatial_roots.len());
+        for (tree, (&mine, &theirs)) in self.spatial_roots.iter().zip(&other.spatial_roots).enumerate() {
+            let parent = Parent::Root { tree: tree as u32 };
+            roots.push(union_spatial([self, other], [(mine, 1.0), (theirs, 1.0)], parent, &mut spatial, &mut pieces)?);
+        }
 
         let budget = self.settings.budget_bytes;
         let fixed = bytes_for(spatial.len(), pieces.len(), 0);
@@ -136,7 +138,7 @@ impl SpatialDirectionalTree {
             });
         }
         self.spatial = spatial;
-        self.spatial_root = root;
+        self.spatial_roots = roots;
         self.leaf_counts = (0..leaves.len()).map(|_| LeafCounts::default()).collect();
         self.leaves = leaves;
         self.sums = (0..quad.len() * 4).map(|_| atomic_f32::new(0.0)).collect();

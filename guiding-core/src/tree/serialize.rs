@@ -6,12 +6,13 @@
 //! settings: u64 budget · f32 c · u32 min split records · f32 mixed normal share · f32 ρ
 //!           · u32 directional depth
 //!           · u32 spatial depth · f32 uniform mix · u32 fold · u32 cosine product
-//!           · update rule (12 bytes)
+//!           · u32 trees per axis · update rule (12 bytes)
 //! vec3 low · vec3 extent · u32 epoch · u64 records before · u32 rejected NaN/∞ · u32 rejected < 0
-//! u32 spatial root · u32 spatial nodes · u32 leaves · u32 directional nodes
+//! u32 spatial root × (3 with trees per axis, else 1) · u32 spatial nodes · u32 leaves
+//! · u32 directional nodes
 //! spatial node × n: u32 low child · u32 high child · u32 axis
 //! leaf × n: u32 root · f32 flux · u64 weight (f64 bits) · u32 parent (node·2 + side, or
-//!           u32::MAX) · vec3 extent · u32 depth · u32 axis (0, 1, 2) · this epoch's
+//!           u32::MAX − t at the root of spatial tree t) · vec3 extent · u32 depth · u32 axis (0, 1, 2) · this epoch's
 //!           counts: per half, u32 records and u32 normals along x, y, z
 //! directional node × n: f32 probability × 4 · u32 child × 4 · f32 building sum × 4
 //! u64 FNV-1a checksum
@@ -30,14 +31,17 @@ use crate::bytes::{invalid_field, open_guide_bytes, ByteWriter};
 use crate::error::Error;
 
 /// Version of the byte format.
-pub const FORMAT_VERSION: u32 = 3;
+pub const FORMAT_VERSION: u32 = 4;
 /// Structure tag of a spatial × directional tree.
 pub const STRUCTURE_TAG: u32 = 4;
 
 const SPATIAL_NODE_SIZE: usize = 12;
 const LEAF_SIZE: usize = 72;
 const QUAD_NODE_SIZE: usize = 48;
+/// A root leaf's parent code is this minus its spatial tree's index.
 const NO_PARENT: u32 = u32::MAX;
+/// Most spatial trees a tree holds (one per world axis).
+const MAX_TREES: u32 = 3;
 
 pub(crate) fn to_bytes(tree: &SpatialDirectionalTree) -> Vec<u8> {
     let size =
@@ -55,6 +59,7 @@ pub(crate) fn to_bytes(tree: &SpatialDirectionalTree) -> Vec<u8> {
     w.put_f32(s.uniform_mix);
     w.put_u32(s.fold_to_hemisphere as u32);
     w.put_u32(s.cosine_product as u32);
+    w.put_u32(s.trees_per_axis as u32);
     w.put_update_rule(&s.update_rule);
     for v in [tree.low, tree.extent] {
         v.to_array().into_iter().for_each(|c| w.put_f32(c));
@@ -63,7 +68,7 @@ pub(crate) fn to_bytes(tree: &SpatialDirectionalTree) -> Vec<u8> {
     w.put_u64(tree.accepted_before);
     w.put_u32(tree.rejected_non_finite.load(Ordering::Relaxed));
     w.put_u32(tree.rejected_negative.load(Ordering::Relaxed));
-    w.put_u32(tree.spatial_root);
+    tree.spatial_roots.iter().for_each(|&root| w.put_u32(root));
     w.put_u32(tree.spatial.len() as u32);
     w.put_u32(tree.leaves.len() as u32);
     w.put_u32(tree.quad.len() as u32);
@@ -77,7 +82,7 @@ pub(crate) fn to_bytes(tree: &SpatialDirectionalTree) -> Vec<u8> {
         w.put_f32(leaf.flux);
         w.put_u64(leaf.weight.to_bits());
         w.put_u32(match leaf.parent {
-            Parent::Root => NO_PARENT,
+            Parent::Root { tree } => NO_PARENT - tree,
             Parent::Node { node, side } => node * 2 + side,
         });
         leaf.extent.to_array().into_iter().for_each(|c| w.put_f32(c));
@@ -115,6 +120,11 @@ pub(crate) fn from_bytes(bytes: &[u8]) -> Result<SpatialDirectionalTree, Error> 
             1 => true,
             _ => return Err(invalid_field("cosine_product", 0, "0 or 1")),
         },
+        trees_per_axis: match r.u32()? {
+            0 => false,
+            1 => true,
+            _ => return Err(invalid_field("trees_per_axis", 0, "0 or 1")),
+        },
         update_rule: r.update_rule()?,
     };
     settings.validate()?;
@@ -122,7 +132,10 @@ pub(crate) fn from_bytes(bytes: &[u8]) -> Result<SpatialDirectionalTree, Error> 
     let epoch = r.u32()?;
     let accepted_before = r.u64()?;
     let (rejected_non_finite, rejected_negative) = (r.u32()?, r.u32()?);
-    let spatial_root = r.u32()?;
+    let mut spatial_roots = Vec::with_capacity(settings.spatial_tree_count());
+    for _ in 0..settings.spatial_tree_count() {
+        spatial_roots.push(r.u32()?);
+    }
     let counts = [r.u32()? as usize, r.u32()? as usize, r.u32()? as usize];
     // Check the length before allocating, so a damaged count cannot demand memory.
     let needed = counts[0] as u64 * SPATIAL_NODE_SIZE as u64
@@ -139,7 +152,7 @@ pub(crate) fn from_bytes(bytes: &[u8]) -> Result<SpatialDirectionalTree, Error> 
         let flux = r.f32()?;
         let weight = f64::from_bits(r.u64()?);
         let parent = match r.u32()? {
-            NO_PARENT => Parent::Root,
+            code if code > NO_PARENT - MAX_TREES => Parent::Root { tree: NO_PARENT - code },
             code => Parent::Node { node: code / 2, side: code % 2 },
         };
         let extent = r.vec3()?;
@@ -180,7 +193,7 @@ pub(crate) fn from_bytes(bytes: &[u8]) -> Result<SpatialDirectionalTree, Error> 
         low,
         extent,
         inverse_extent: extent.recip(),
-        spatial_root,
+        spatial_roots,
         spatial,
         leaves,
         leaf_counts,
@@ -244,9 +257,14 @@ pub(crate) fn validate(tree: &SpatialDirectionalTree) -> Result<(), Error> {
 fn check_spatial(tree: &SpatialDirectionalTree) -> Result<(), Error> {
     let mut node_seen = alloc::vec![false; tree.spatial.len()];
     let mut leaf_seen = alloc::vec![false; tree.leaves.len()];
-    // (reference, depth, where it hangs)
-    let mut stack = alloc::vec![(tree.spatial_root, 0u32, Parent::Root)];
-    while let Some((reference, depth, parent)) = stack.pop() {
+    if tree.spatial_roots.len() != tree.settings.spatial_tree_count() {
+        return Err(invalid_field("spatial_roots", 0, "one per spatial tree the settings keep"));
+    }
+    // (reference, depth, where it hangs, which spatial tree)
+    let roots = tree.spatial_roots.iter().enumerate();
+    let mut stack: Vec<(u32, u32, Parent, u32)> =
+        roots.map(|(t, &root)| (root, 0u32, Parent::Root { tree: t as u32 }, t as u32)).collect();
+    while let Some((reference, depth, parent, spatial_tree)) = stack.pop() {
         if reference & LEAF != 0 {
             let leaf = (reference & !LEAF) as usize;
             if leaf >= tree.leaves.len() || leaf_seen[leaf] {
@@ -255,6 +273,9 @@ fn check_spatial(tree: &SpatialDirectionalTree) -> Result<(), Error> {
             leaf_seen[leaf] = true;
             if tree.leaves[leaf].parent != parent || tree.leaves[leaf].depth != depth {
                 return Err(invalid_field("leaf.parent", leaf, "where the tree holds it, at its depth"));
+            }
+            if tree.settings.trees_per_axis && tree.leaves[leaf].axis != spatial_tree {
+                return Err(invalid_field("leaf.axis", leaf, "the axis of the spatial tree holding it"));
             }
             continue;
         }
@@ -271,14 +292,15 @@ fn check_spatial(tree: &SpatialDirectionalTree) -> Result<(), Error> {
                 tree.spatial[node].child[side],
                 depth + 1,
                 Parent::Node { node: node as u32, side: side as u32 },
+                spatial_tree,
             ));
         }
     }
     if let Some(node) = node_seen.iter().position(|&s| !s) {
-        return Err(invalid_field("spatial_node", node, "reachable from the root"));
+        return Err(invalid_field("spatial_node", node, "reachable from a root"));
     }
     if let Some(leaf) = leaf_seen.iter().position(|&s| !s) {
-        return Err(invalid_field("leaf", leaf, "reachable from the root"));
+        return Err(invalid_field("leaf", leaf, "reachable from a root"));
     }
     Ok(())
 }
@@ -347,5 +369,44 @@ mod tests {
         let mut short = bytes.clone();
         short.truncate(bytes.len() - 20);
         assert!(SpatialDirectionalTree::from_bytes(&short).is_err());
+    }
+
+    /// A tree per axis, learned on a corner (floor, wall and a slope), round-trips, merges
+    /// with a copy of itself, and a root leaf named under another tree's root is refused.
+    #[test]
+    fn trees_per_axis_round_trip_merge_and_name_a_misplaced_root() {
+        let settings =
+            SpatialDirectionalTreeSettings { min_split_records: 100, trees_per_axis: true, ..Default::default() };
+        let mut tree = SpatialDirectionalTree::new(Vec3::splat(-1.0), Vec3::ONE, settings).unwrap();
+        let mut rng = Pcg32::new(3, 3);
+        let normals = [Vec3::Y, -Vec3::X, Vec3::new(0.0, 0.6, 0.8)];
+        for _ in 0..3 {
+            for i in 0..30_000 {
+                let p = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - 1.0;
+                let region = tree.locate(p, normals[i % 3]).unwrap();
+                let s = tree.sample(region, rng.next_vec2());
+                tree.update_sampled(region, s.direction, s.direction.x.max(0.0) * 10.0, s.pdf);
+            }
+            tree.rebuild_sampling();
+        }
+        assert!(tree.leaf_count() > 3);
+        let axes: Vec<u32> = (0..tree.leaf_count() as u32).filter_map(|l| tree.leaf_axis(l)).collect();
+        assert!((0..3).all(|a| axes.contains(&a)), "every tree learned: {axes:?}");
+        let bytes = tree.to_bytes();
+        let loaded = SpatialDirectionalTree::from_bytes(&bytes).unwrap();
+        assert_eq!(loaded.to_bytes(), bytes);
+        let mut merged = tree.clone();
+        merged.merge(&loaded).unwrap();
+        merged.validate().unwrap();
+        assert_eq!(merged.leaf_count(), tree.leaf_count());
+        // Two trees' roots swapped: each root leaf then hangs where the bytes say it
+        // does not.
+        let mut swapped = tree.clone();
+        swapped.spatial_roots.swap(0, 1);
+        assert!(SpatialDirectionalTree::from_bytes(&swapped.to_bytes()).is_err());
+        // The byte image of a single tree does not load as one per axis.
+        let mut single = tree.clone();
+        single.settings.trees_per_axis = false;
+        assert!(SpatialDirectionalTree::from_bytes(&single.to_bytes()).is_err());
     }
 }

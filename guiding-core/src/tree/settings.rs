@@ -55,6 +55,21 @@ pub struct SpatialDirectionalTreeSettings {
     /// Default on: as for `mixed_normal_share` (both on), relMSE × spp 115/114/118
     /// against 151/150/137 off.
     pub cosine_product: bool,
+    /// One spatial tree per world axis, each for the surfaces whose normal lies nearest
+    /// that axis (largest |component|), its leaves' squares built around it for good:
+    /// surfaces facing different ways never share a leaf (a corner's floor and walls
+    /// learn apart at any size), and an aligned normal always samples one half of its
+    /// leaf's square (one descent, never the fold's two). Off: one spatial tree whose
+    /// leaves turn their square to the axis most of their records' normals lie along,
+    /// and split where their normals are mixed (`mixed_normal_share`). Default off: the
+    /// reference tracer's guided (`--guide tree --p-focal 0 --guide-share fixed`, 30 s),
+    /// relMSE × spp on ÷ off, door 160×120 seeds 41/42/43 185/200/181 against
+    /// 108/109/112, cornell 128² seeds 41/42 1.96/1.93 against 1.61/1.52: the mixed split
+    /// refines space along every edge and corner, and that finer space pays more than
+    /// keeping the surfaces apart (on, halving the split constant to 16 or 8 for as many
+    /// leaves as off gave 166 and 141 on door). On is the lighter and faster tree (the
+    /// criterion bench: 173 ns against 203 ns a vertex, 0.5 MB against 2.6 MB).
+    pub trees_per_axis: bool,
     /// How the epochs' flux estimates combine ([`LearningRate`]: simple averaging weighs
     /// every record alike, a constant α blends each epoch in, `Global` decays by epoch)
     /// and how the target's integral is estimated ([`IntegralEstimator::PathContinuation`]
@@ -75,6 +90,7 @@ impl Default for SpatialDirectionalTreeSettings {
             uniform_mix: 0.02,
             fold_to_hemisphere: true,
             cosine_product: true,
+            trees_per_axis: false,
             update_rule: UpdateRule {
                 learning_rate: LearningRate::SimpleAverage,
                 integral: IntegralEstimator::PathContinuation,
@@ -101,6 +117,15 @@ impl SpatialDirectionalTreeSettings {
         let mix = self.uniform_mix;
         require((0.0..=1.0).contains(&mix), "uniform_mix", mix as f64, "in [0, 1]")?;
         Ok(())
+    }
+
+    /// How many spatial trees the settings keep: three with `trees_per_axis`, else one.
+    pub fn spatial_tree_count(&self) -> usize {
+        if self.trees_per_axis {
+            3
+        } else {
+            1
+        }
     }
 
     /// The records above which a leaf splits when the tree holds `records` in all.

@@ -68,8 +68,13 @@ pub(crate) fn locate_leaf(
 /// Where a leaf hangs: the node and side whose child reference names it, or the root.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum Parent {
-    /// The tree is this one leaf.
-    Root,
+    /// Spatial tree `tree` (of the settings' [`spatial_tree_count`]) is this one leaf.
+    ///
+    /// [`spatial_tree_count`]: super::SpatialDirectionalTreeSettings::spatial_tree_count
+    Root {
+        /// Which of the spatial trees.
+        tree: u32,
+    },
     /// `nodes[node].child[side]`.
     Node {
         /// Node index.
@@ -81,10 +86,10 @@ pub(crate) enum Parent {
 
 /// Splits the leaf `leaf` hanging at `parent` along `axis`: a new node takes its place,
 /// with `leaf` as the low half and `new_leaf` as the high half. Returns the new node's
-/// index; `root` is updated when the leaf was the root.
+/// index; `roots` (the spatial trees' roots) is updated when the leaf was a root.
 pub(crate) fn split_leaf(
     nodes: &mut Vec<SpatialNode>,
-    root: &mut u32,
+    roots: &mut [u32],
     parent: Parent,
     leaf: u32,
     new_leaf: u32,
@@ -93,7 +98,11 @@ pub(crate) fn split_leaf(
     let index = nodes.len() as u32;
     nodes.push(SpatialNode { child: [LEAF | leaf, LEAF | new_leaf], axis });
     match parent {
-        Parent::Root => *root = index,
+        Parent::Root { tree } => {
+            if let Some(root) = roots.get_mut(tree as usize) {
+                *root = index;
+            }
+        }
         Parent::Node { node, side } => nodes[node as usize].child[side as usize] = index,
     }
     index
@@ -106,9 +115,10 @@ mod tests {
     #[test]
     fn descent_finds_the_half_a_point_lies_in() {
         let mut nodes = Vec::new();
-        let mut root = LEAF;
-        let first = split_leaf(&mut nodes, &mut root, Parent::Root, 0, 1, 0);
-        split_leaf(&mut nodes, &mut root, Parent::Node { node: first, side: 1 }, 1, 2, 1);
+        let mut roots = [LEAF];
+        let first = split_leaf(&mut nodes, &mut roots, Parent::Root { tree: 0 }, 0, 1, 0);
+        split_leaf(&mut nodes, &mut roots, Parent::Node { node: first, side: 1 }, 1, 2, 1);
+        let root = roots[0];
         let (low, inverse) = (Vec3::splat(-1.0), Vec3::splat(0.5));
         let at = |x: f32, y: f32| locate_leaf(&nodes, root, low, inverse, Vec3::new(x, y, 0.0)).map(|(leaf, _)| leaf);
         assert_eq!(at(-0.5, 0.7), Some(0));

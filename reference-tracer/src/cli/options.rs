@@ -213,6 +213,11 @@ pub struct TraceOptions {
     /// off). Default on (guiding-core's).
     #[arg(long, value_parser = parse_switch)]
     pub(super) tree_cosine: Option<bool>,
+    /// Whether the tree keeps one spatial tree per world axis, for the surfaces whose
+    /// normal lies nearest it (on), or one whose leaves turn to their records' normals
+    /// (off). Default guiding-core's.
+    #[arg(long, value_parser = parse_switch)]
+    pub(super) tree_per_axis: Option<bool>,
     /// Patches per hemisphere as U×V, e.g. 8x16 (for --guide volume: bands of cos θ ×
     /// sectors of φ over the whole sphere).
     #[arg(long, default_value = "8x16", value_parser = parse_patches)]

@@ -80,6 +80,7 @@ impl TraceOptions {
                     fold_to_hemisphere: self.tree_fold.unwrap_or(defaults.fold_to_hemisphere),
                     mixed_normal_share: self.tree_mixed_share.unwrap_or(defaults.mixed_normal_share),
                     cosine_product: self.tree_cosine.unwrap_or(defaults.cosine_product),
+                    trees_per_axis: self.tree_per_axis.unwrap_or(defaults.trees_per_axis),
                     ..defaults
                 };
                 settings.validate().map_err(|e| format!("tree guide: {e}"))?;
