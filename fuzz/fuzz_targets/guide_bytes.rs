@@ -87,6 +87,7 @@ impl FuzzedGuide for SpatialDirectionalTree {
             cosine_product: p(4) % 2 == 0,
             mixed_normal_share: if p(5) % 2 == 0 { 0.0 } else { 0.97 },
             trees_per_axis: p(6) % 2 == 0,
+            second_moment: p(7) % 2 == 0,
             ..Default::default()
         };
         SpatialDirectionalTree::new(Vec3::ZERO, Vec3::ONE, settings).expect("a valid small tree")

@@ -311,6 +311,9 @@ typedef struct LodestarTreeConfig {
   // nearest it (surfaces facing different ways never share a leaf); 0: one spatial
   // tree whose leaves turn to their records' normals.
   uint32_t trees_per_axis;
+  // 1: fit each directional cell to the root mean square of the arriving radiance
+  // (variance-aware guiding); 0: to its mean.
+  uint32_t second_moment;
 } LodestarTreeConfig;
 
 // Everything that shapes a guide. Fill it with `lodestar_guide_config_default`, then

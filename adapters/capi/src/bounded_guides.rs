@@ -187,6 +187,9 @@ pub struct LodestarTreeConfig {
     /// nearest it (surfaces facing different ways never share a leaf); 0: one spatial
     /// tree whose leaves turn to their records' normals.
     pub trees_per_axis: u32,
+    /// 1: fit each directional cell to the root mean square of the arriving radiance
+    /// (variance-aware guiding); 0: to its mean.
+    pub second_moment: u32,
 }
 
 impl LodestarTreeConfig {
@@ -208,6 +211,7 @@ impl LodestarTreeConfig {
             mixed_normal_share: s.mixed_normal_share,
             cosine_product: s.cosine_product as u32,
             trees_per_axis: s.trees_per_axis as u32,
+            second_moment: s.second_moment as u32,
         }
     }
 
@@ -225,6 +229,7 @@ impl LodestarTreeConfig {
             fold_to_hemisphere: flag(self.fold_to_hemisphere, "fold_to_hemisphere")?,
             cosine_product: flag(self.cosine_product, "cosine_product")?,
             trees_per_axis: flag(self.trees_per_axis, "trees_per_axis")?,
+            second_moment: flag(self.second_moment, "second_moment")?,
             update_rule: update_rule_from_c(self.learning_rate, self.learning_rate_parameter, self.integral_estimator)?,
         };
         settings.validate().map_err(|e| Failure::from_core(&e, "config"))?;
@@ -411,5 +416,8 @@ mod tests {
         tree.mixed_normal_share = 0.97;
         tree.trees_per_axis = 2;
         assert!(tree.settings().unwrap_err().message.contains("trees_per_axis"));
+        tree.trees_per_axis = 0;
+        tree.second_moment = 7;
+        assert!(tree.settings().unwrap_err().message.contains("second_moment"));
     }
 }

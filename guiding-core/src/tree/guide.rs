@@ -460,7 +460,8 @@ impl Guide for SpatialDirectionalTree {
         if !(unit && pdf.is_finite() && pdf > 0.0) {
             return UpdateOutcome::OutsideDomain;
         }
-        let weight = (target / pdf).min(f32::MAX);
+        let moment = if self.settings.second_moment { target * target } else { target };
+        let weight = (moment / pdf).min(f32::MAX);
         let p = direction_to_square(to_axis_frame(direction, leaf.axis));
         let cell = quadtree::leaf_cell(&self.quad, leaf.root, p);
         quadtree::add_record(&self.sums, cell, weight);
@@ -519,6 +520,7 @@ impl Guide for SpatialDirectionalTree {
                 previous_flux: leaf.flux as f64,
                 sum_scale: if n > 0 { 1.0 / n as f64 } else { 0.0 },
                 alpha: self.alpha(leaf.weight, n),
+                second_moment: self.settings.second_moment,
             };
             let rule = RefitRule {
                 flux_fraction: self.settings.flux_fraction as f64,

@@ -8,7 +8,7 @@ use core::sync::atomic::AtomicU32;
 
 use glam::Vec2;
 
-use super::square::ONE_BELOW;
+use super::square::{ONE_BELOW, SQUARE_TO_SOLID_ANGLE};
 use crate::atomic_f32;
 
 /// One node of a directional quadtree: four cells, in the order (u low, v low),
@@ -257,6 +257,10 @@ pub(crate) struct EpochBlend {
     pub(crate) sum_scale: f64,
     /// The weight of the epoch's estimate against the previous one, in [0, 1].
     pub(crate) alpha: f64,
+    /// The sums are of target²/pdf, estimating ∫ L² dω over each cell: a cell's flux is
+    /// then its solid angle times the root mean square radiance there,
+    /// √(Ω · ∫ L² dω) (the settings' `second_moment`).
+    pub(crate) second_moment: bool,
 }
 
 /// Rebuilds one leaf's tree from its sampling probabilities and building sums, blended
@@ -272,28 +276,33 @@ pub(crate) fn refit(
     out: &mut Vec<QuadNode>,
 ) -> (u32, f64) {
     scratch.resize(nodes.len(), [0.0; 4]);
-    let total = blend_cells(nodes, sums, root, 1.0, &blend, scratch);
+    let total = blend_cells(nodes, sums, root, 1.0, 1.0, &blend, scratch);
     let mut builder = Builder { old: nodes, blended: scratch, out, total, rule };
     let new_root = builder.build(Some(root), scratch[root as usize], 0);
     (new_root, total)
 }
 
 /// Fills `blended[node]` with each cell's blended flux, below `node` first; `mass` is
-/// the node's share of the previous distribution. Returns the node's total.
+/// the node's share of the previous distribution, `area` its share of the square.
+/// Returns the node's total.
 fn blend_cells(
     nodes: &[QuadNode],
     sums: &[AtomicU32],
     node: u32,
     mass: f64,
+    area: f64,
     blend: &EpochBlend,
     blended: &mut [[f64; 4]],
 ) -> f64 {
     let mut cells = [0.0f64; 4];
+    let cell_area = 0.25 * area;
     for (cell, value) in cells.iter_mut().enumerate() {
         let share = mass * nodes[node as usize].probability[cell] as f64;
         *value = match nodes[node as usize].child[cell] {
             0 => {
-                let learned = atomic_f32::load(&sums[node as usize * 4 + cell]) as f64 * blend.sum_scale;
+                let sum = atomic_f32::load(&sums[node as usize * 4 + cell]) as f64 * blend.sum_scale;
+                let learned =
+                    if blend.second_moment { libm::sqrt(SQUARE_TO_SOLID_ANGLE as f64 * cell_area * sum) } else { sum };
                 let previous = blend.previous_flux * share;
                 let mixed = (1.0 - blend.alpha) * previous + blend.alpha * learned;
                 if mixed.is_finite() && mixed > 0.0 {
@@ -302,7 +311,7 @@ fn blend_cells(
                     0.0
                 }
             }
-            child => blend_cells(nodes, sums, child, share, blend, blended),
+            child => blend_cells(nodes, sums, child, share, cell_area, blend, blended),
         };
     }
     blended[node as usize] = cells;
@@ -374,7 +383,7 @@ mod tests {
                 let target = if (p - light).abs().max_element() < 1e-3 { 1e4 } else { 0.01 };
                 add_record(&building, leaf_cell(&nodes, root, p), target / pdf);
             }
-            let blend = EpochBlend { previous_flux: 0.0, sum_scale: 1.0 / 20_000.0, alpha: 1.0 };
+            let blend = EpochBlend { previous_flux: 0.0, sum_scale: 1.0 / 20_000.0, alpha: 1.0, second_moment: false };
             let (mut out, mut scratch) = (Vec::new(), Vec::new());
             root = refit(&nodes, &building, root, blend, rule, &mut scratch, &mut out).0;
             nodes = out;
@@ -433,7 +442,7 @@ mod tests {
     fn an_empty_epoch_keeps_the_tree_and_nothing_learned_stays_uniform() {
         let nodes = alloc::vec![QuadNode::UNIFORM];
         let rule = RefitRule { flux_fraction: 0.01, max_depth: 20, node_cap: 1000 };
-        let blend = EpochBlend { previous_flux: 0.0, sum_scale: 0.0, alpha: 1.0 };
+        let blend = EpochBlend { previous_flux: 0.0, sum_scale: 0.0, alpha: 1.0, second_moment: false };
         let (mut out, mut scratch) = (Vec::new(), Vec::new());
         let (root, flux) = refit(&nodes, &sums(1), 0, blend, rule, &mut scratch, &mut out);
         assert_eq!((out.len(), flux), (1, 0.0));
@@ -446,7 +455,7 @@ mod tests {
         let building = sums(1);
         add_record(&building, 0, 1.0);
         let rule = RefitRule { flux_fraction: 1e-6, max_depth: 20, node_cap: 7 };
-        let blend = EpochBlend { previous_flux: 0.0, sum_scale: 1.0, alpha: 1.0 };
+        let blend = EpochBlend { previous_flux: 0.0, sum_scale: 1.0, alpha: 1.0, second_moment: false };
         let (mut out, mut scratch) = (Vec::new(), Vec::new());
         refit(&nodes, &building, 0, blend, rule, &mut scratch, &mut out);
         assert!(out.len() <= 7, "{} nodes", out.len());

@@ -6,7 +6,7 @@
 //! settings: u64 budget · f32 c · u32 min split records · f32 mixed normal share · f32 ρ
 //!           · u32 directional depth
 //!           · u32 spatial depth · f32 uniform mix · u32 fold · u32 cosine product
-//!           · u32 trees per axis · update rule (12 bytes)
+//!           · u32 trees per axis · u32 second moment · update rule (12 bytes)
 //! vec3 low · vec3 extent · u32 epoch · u64 records before · u32 rejected NaN/∞ · u32 rejected < 0
 //! u32 spatial root × (3 with trees per axis, else 1) · u32 spatial nodes · u32 leaves
 //! · u32 directional nodes
@@ -31,7 +31,7 @@ use crate::bytes::{invalid_field, open_guide_bytes, ByteWriter};
 use crate::error::Error;
 
 /// Version of the byte format.
-pub const FORMAT_VERSION: u32 = 4;
+pub const FORMAT_VERSION: u32 = 5;
 /// Structure tag of a spatial × directional tree.
 pub const STRUCTURE_TAG: u32 = 4;
 
@@ -60,6 +60,7 @@ pub(crate) fn to_bytes(tree: &SpatialDirectionalTree) -> Vec<u8> {
     w.put_u32(s.fold_to_hemisphere as u32);
     w.put_u32(s.cosine_product as u32);
     w.put_u32(s.trees_per_axis as u32);
+    w.put_u32(s.second_moment as u32);
     w.put_update_rule(&s.update_rule);
     for v in [tree.low, tree.extent] {
         v.to_array().into_iter().for_each(|c| w.put_f32(c));
@@ -124,6 +125,11 @@ pub(crate) fn from_bytes(bytes: &[u8]) -> Result<SpatialDirectionalTree, Error> 
             0 => false,
             1 => true,
             _ => return Err(invalid_field("trees_per_axis", 0, "0 or 1")),
+        },
+        second_moment: match r.u32()? {
+            0 => false,
+            1 => true,
+            _ => return Err(invalid_field("second_moment", 0, "0 or 1")),
         },
         update_rule: r.update_rule()?,
     };

@@ -218,6 +218,10 @@ pub struct TraceOptions {
     /// (off). Default guiding-core's.
     #[arg(long, value_parser = parse_switch)]
     pub(super) tree_per_axis: Option<bool>,
+    /// Whether the tree fits each direction to the root mean square of what arrives
+    /// (variance-aware guiding, on) or to its mean (off). Default guiding-core's.
+    #[arg(long, value_parser = parse_switch)]
+    pub(super) tree_second_moment: Option<bool>,
     /// Patches per hemisphere as U×V, e.g. 8x16 (for --guide volume: bands of cos θ ×
     /// sectors of φ over the whole sphere).
     #[arg(long, default_value = "8x16", value_parser = parse_patches)]

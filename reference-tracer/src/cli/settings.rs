@@ -81,6 +81,7 @@ impl TraceOptions {
                     mixed_normal_share: self.tree_mixed_share.unwrap_or(defaults.mixed_normal_share),
                     cosine_product: self.tree_cosine.unwrap_or(defaults.cosine_product),
                     trees_per_axis: self.tree_per_axis.unwrap_or(defaults.trees_per_axis),
+                    second_moment: self.tree_second_moment.unwrap_or(defaults.second_moment),
                     ..defaults
                 };
                 settings.validate().map_err(|e| format!("tree guide: {e}"))?;
