@@ -48,10 +48,47 @@ pub fn build_cdf(cdf: &mut [f32], uniform_mix: f32, weight: impl Fn(usize) -> f3
 pub fn sample_cdf(cdf: &[f32], u: f32) -> (usize, f32) {
     let last = cdf.len() - 1;
     let index = cdf.partition_point(|&c| c <= u).min(last);
+    (index, remap(cdf, index, u))
+}
+
+/// `u` rescaled to [0, 1) inside entry `index`'s interval of `cdf`.
+#[inline]
+fn remap(cdf: &[f32], index: usize, u: f32) -> f32 {
     let low = if index == 0 { 0.0 } else { cdf[index - 1] };
     let width = cdf[index] - low;
     let remapped = if width > 0.0 { (u - low) / width } else { 0.0 };
-    (index, remapped.clamp(0.0, 1.0 - f32::EPSILON / 2.0))
+    remapped.clamp(0.0, 1.0 - f32::EPSILON / 2.0)
+}
+
+/// Fills `guide` (its length a power of two, G) with the guide table of `cdf`: entry j
+/// is the first index whose CDF value exceeds j/G. [`sample_cdf_guided`] then searches
+/// only between two entries, a few values of a long CDF instead of all of it (the
+/// texels of an environment map's tile, where the whole search missed the cache at
+/// every level). `cdf` must not be empty.
+pub fn build_cdf_guide(cdf: &[f32], guide: &mut [u32]) {
+    debug_assert!(guide.len().is_power_of_two());
+    let buckets = guide.len() as f32;
+    let last = cdf.len().saturating_sub(1);
+    for (j, entry) in guide.iter_mut().enumerate() {
+        // j/G is exact in f32 for a power-of-two G, as is u·G in the sampler.
+        let threshold = j as f32 / buckets;
+        *entry = cdf.partition_point(|&c| c <= threshold).min(last) as u32;
+    }
+}
+
+/// [`sample_cdf`] through the guide table [`build_cdf_guide`] made for `cdf`: the same
+/// index and rescaled number for every `u`, found by a search between two guide entries.
+pub fn sample_cdf_guided(cdf: &[f32], guide: &[u32], u: f32) -> (usize, f32) {
+    let last = cdf.len() - 1;
+    let buckets = guide.len();
+    // The index k sought has cdf[k - 1] ≤ u < cdf[k]; with j/G ≤ u < (j + 1)/G it lies
+    // at or after guide[j] (cdf[guide[j] - 1] ≤ j/G) and at or before guide[j + 1]
+    // (cdf[guide[j + 1]] > (j + 1)/G), or the last index.
+    let j = ((u * buckets as f32) as usize).min(buckets - 1);
+    let low = (guide[j] as usize).min(last);
+    let high = guide.get(j + 1).map_or(last, |&g| (g as usize).min(last)).max(low);
+    let index = low + cdf[low..=high].partition_point(|&c| c <= u).min(high - low);
+    (index, remap(cdf, index, u))
 }
 
 /// The probability of index `k`: `cdf[k] - cdf[k-1]` (exact, a multiple of 2⁻²⁴).
@@ -66,6 +103,38 @@ mod tests {
     use crate::low_discrepancy::Pcg32;
     use alloc::vec;
     use alloc::vec::Vec;
+
+    #[test]
+    fn the_guided_search_finds_what_the_whole_search_finds() {
+        let mut rng = Pcg32::new(21, 4);
+        for (count, buckets) in [(1usize, 4usize), (3, 64), (100, 8), (4096, 64), (5000, 1)] {
+            // Long runs of empty entries and a few spikes, as a map's tile has.
+            let weights: Vec<f32> = (0..count)
+                .map(|_| {
+                    let r = rng.next_f32();
+                    if r < 0.5 {
+                        0.0
+                    } else if r < 0.52 {
+                        1e4
+                    } else {
+                        r
+                    }
+                })
+                .collect();
+            let mut cdf = vec![0.0; count];
+            build_cdf(&mut cdf, 0.0, |k| weights[k]);
+            let mut guide = vec![0u32; buckets];
+            build_cdf_guide(&cdf, &mut guide);
+            let edges = (0..buckets).flat_map(|j| {
+                let edge = j as f32 / buckets as f32;
+                [edge, f32::from_bits(edge.to_bits().saturating_sub(1)).max(0.0)]
+            });
+            let values: Vec<f32> = edges.chain(cdf.iter().copied().filter(|&c| c < 1.0)).collect();
+            for u in values.into_iter().chain((0..20_000).map(|_| rng.next_f32())) {
+                assert_eq!(sample_cdf_guided(&cdf, &guide, u), sample_cdf(&cdf, u), "u {u}, {count} entries");
+            }
+        }
+    }
 
     #[test]
     fn probabilities_follow_the_weights() {

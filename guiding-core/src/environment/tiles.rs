@@ -8,13 +8,19 @@ use alloc::vec;
 use alloc::vec::Vec;
 use glam::{Vec2, Vec3};
 
-use crate::cdf::{build_cdf, cdf_probability, sample_cdf};
+use crate::cdf::{build_cdf, build_cdf_guide, cdf_probability, sample_cdf_guided};
 use crate::error::{require, Error};
 
 use super::lat_long::{direction_of_uv, sin_theta, texel_density, texel_of_direction};
 
 /// Most texels a map may have (a 16k × 8k map).
 pub const MAX_TEXELS: usize = 1 << 27;
+
+/// Guide-table entries per tile ([`build_cdf_guide`]): a tile of a 2k × 1k map cut
+/// 32 × 16 holds 4096 texels, whose CDF a whole binary search crossed in 12 dependent
+/// loads, most of them cache misses (a quarter of nee's time on the living room); 64
+/// entries (256 bytes a tile) leave a search among a few dozen.
+const GUIDE_ENTRIES: usize = 64;
 
 /// The tiles of a `width × height` lat-long map and the texel distribution inside each.
 ///
@@ -45,6 +51,8 @@ pub struct EnvironmentTiles {
     texel_cdf: Vec<f32>,
     /// Start of each tile's texels in `texel_cdf` (one more entry than tiles).
     tile_start: Vec<usize>,
+    /// Per tile, [`GUIDE_ENTRIES`] entries of its CDF's guide table.
+    texel_guide: Vec<u32>,
     /// Per tile: Σ luminance × texel solid angle (luminance × steradians).
     power: Vec<f32>,
 }
@@ -67,6 +75,7 @@ impl EnvironmentTiles {
         let mut texel_cdf = vec![0.0; texels];
         let mut tile_start = Vec::with_capacity(tiles[0] * tiles[1] + 1);
         let mut power = Vec::with_capacity(tiles[0] * tiles[1]);
+        let mut texel_guide = Vec::with_capacity(tiles[0] * tiles[1] * GUIDE_ENTRIES);
         let mut start = 0;
         for tile_row in 0..tiles[1] {
             let rows = span(tile_row, tiles[1], height);
@@ -79,6 +88,9 @@ impl EnvironmentTiles {
                 };
                 let count = rows.len() * tile_width;
                 build_cdf(&mut texel_cdf[start..start + count], 0.0, weight);
+                let guide = texel_guide.len();
+                texel_guide.resize(guide + GUIDE_ENTRIES, 0);
+                build_cdf_guide(&texel_cdf[start..start + count], &mut texel_guide[guide..]);
                 let total: f64 = (0..count).map(|k| weight(k) as f64).sum();
                 power.push((total * texel_solid_angle as f64) as f32);
                 tile_start.push(start);
@@ -86,7 +98,7 @@ impl EnvironmentTiles {
             }
         }
         tile_start.push(start);
-        Ok(Self { width, height, tiles, texel_cdf, tile_start, power })
+        Ok(Self { width, height, tiles, texel_cdf, tile_start, texel_guide, power })
     }
 
     /// Number of tiles.
@@ -111,7 +123,8 @@ impl EnvironmentTiles {
 
     /// Bytes held.
     pub fn memory_bytes(&self) -> usize {
-        (self.texel_cdf.len() + self.power.len()) * 4 + self.tile_start.len() * core::mem::size_of::<usize>()
+        (self.texel_cdf.len() + self.power.len() + self.texel_guide.len()) * 4
+            + self.tile_start.len() * core::mem::size_of::<usize>()
     }
 
     /// The tile that direction `d` (unit) falls in, and the index of its texel within it.
@@ -141,7 +154,8 @@ impl EnvironmentTiles {
     pub fn sample_in_tile(&self, t: usize, u: Vec2) -> (Vec3, f32) {
         let [tx, ty] = self.tiles;
         let (columns, rows) = (span(t % tx, tx, self.width), span(t / tx, ty, self.height));
-        let (k, u_column) = sample_cdf(&self.texel_cdf[self.tile_start[t]..self.tile_start[t + 1]], u.x);
+        let cdf = &self.texel_cdf[self.tile_start[t]..self.tile_start[t + 1]];
+        let (k, u_column) = sample_cdf_guided(cdf, &self.texel_guide[t * GUIDE_ENTRIES..(t + 1) * GUIDE_ENTRIES], u.x);
         let column = columns.start + k % columns.len();
         let row = rows.start + k / columns.len();
         // Kept off the poles, where dω = 2π² sin θ du dv has no density: a direction there
