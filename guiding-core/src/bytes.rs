@@ -219,7 +219,10 @@ impl<'a> ByteReader<'a> {
     }
 
     /// A 0/1 word as a flag; anything else is an invalid `field`.
-    #[cfg_attr(not(any(feature = "mixture", feature = "env", feature = "lights")), allow(dead_code))]
+    #[cfg_attr(
+        not(any(feature = "mixture", feature = "env", feature = "lights", feature = "tree", feature = "volume")),
+        allow(dead_code)
+    )]
     pub(crate) fn flag(&mut self, field: &'static str) -> Result<bool, Error> {
         match self.u32()? {
             0 => Ok(false),

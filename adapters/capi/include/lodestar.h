@@ -312,7 +312,8 @@ typedef struct LodestarTreeConfig {
   // tree whose leaves turn to their records' normals.
   uint32_t trees_per_axis;
   // 1: fit each directional cell to the root mean square of the arriving radiance
-  // (variance-aware guiding); 0: to its mean.
+  // (variance-aware guiding; needs `integral_estimator` `PATH_CONTINUATION`); 0: to
+  // its mean.
   uint32_t second_moment;
 } LodestarTreeConfig;
 

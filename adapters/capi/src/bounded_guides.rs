@@ -188,7 +188,8 @@ pub struct LodestarTreeConfig {
     /// tree whose leaves turn to their records' normals.
     pub trees_per_axis: u32,
     /// 1: fit each directional cell to the root mean square of the arriving radiance
-    /// (variance-aware guiding); 0: to its mean.
+    /// (variance-aware guiding; needs `integral_estimator` `PATH_CONTINUATION`); 0: to
+    /// its mean.
     pub second_moment: u32,
 }
 

@@ -66,7 +66,9 @@ pub(crate) const LEAF_BYTES: usize = core::mem::size_of::<SpatialLeaf>() + core:
 /// Learning is by records: [`update_sampled`](Guide::update_sampled) adds target/pdf to
 /// the building sum of the quadtree cell the direction falls in (one lock-free add; the
 /// sampling side is read-only during a pass), so each cell estimates the flux ∫ L dω over
-/// its solid angle whatever density drew its directions. Between passes
+/// its solid angle whatever density drew its directions (with the settings'
+/// `second_moment`, the default, target²/pdf and ∫ L² dω, whose root gives the cell
+/// its share). Between passes
 /// [`rebuild_sampling`](Guide::rebuild_sampling) blends each leaf's new estimate with its
 /// old one by the learning rate, splits directional cells holding more than
 /// `flux_fraction` of their leaf's flux, merges those holding less, and splits spatial
@@ -174,8 +176,8 @@ impl SpatialDirectionalTree {
     }
 
     /// Forgets everything learned: one leaf per spatial tree over the same box, each with
-    /// a uniform quadtree, no
-    /// records, epoch 0 (as [`new`](Self::new) made it, to the rounding of the box).
+    /// a uniform quadtree, no records, epoch 0 (as [`new`](Self::new) made it, to the
+    /// rounding of the box).
     pub fn reset(&mut self) {
         let extent = self.extent / (1.0 + 2e-6);
         let low = self.low + extent * 1e-6;
@@ -217,7 +219,8 @@ impl SpatialDirectionalTree {
         self.leaves.get(leaf as usize).map_or(0.0, |l| l.flux)
     }
 
-    /// Q(region, ω): the radiance the leaf has learned to arrive from `direction`.
+    /// Q(region, ω): the radiance the leaf has learned to arrive from `direction` (its
+    /// root mean square with the settings' `second_moment`).
     pub fn q(&self, region: TreeRegion, direction: Vec3) -> f32 {
         let Some(leaf) = self.leaves.get(region.leaf as usize) else { return 0.0 };
         let p = direction_to_square(to_axis_frame(direction, leaf.axis));

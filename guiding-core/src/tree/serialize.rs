@@ -111,26 +111,10 @@ pub(crate) fn from_bytes(bytes: &[u8]) -> Result<SpatialDirectionalTree, Error> 
         max_directional_depth: r.u32()?,
         max_spatial_depth: r.u32()?,
         uniform_mix: r.f32()?,
-        fold_to_hemisphere: match r.u32()? {
-            0 => false,
-            1 => true,
-            _ => return Err(invalid_field("fold_to_hemisphere", 0, "0 or 1")),
-        },
-        cosine_product: match r.u32()? {
-            0 => false,
-            1 => true,
-            _ => return Err(invalid_field("cosine_product", 0, "0 or 1")),
-        },
-        trees_per_axis: match r.u32()? {
-            0 => false,
-            1 => true,
-            _ => return Err(invalid_field("trees_per_axis", 0, "0 or 1")),
-        },
-        second_moment: match r.u32()? {
-            0 => false,
-            1 => true,
-            _ => return Err(invalid_field("second_moment", 0, "0 or 1")),
-        },
+        fold_to_hemisphere: r.flag("fold_to_hemisphere")?,
+        cosine_product: r.flag("cosine_product")?,
+        trees_per_axis: r.flag("trees_per_axis")?,
+        second_moment: r.flag("second_moment")?,
         update_rule: r.update_rule()?,
     };
     settings.validate()?;

@@ -126,6 +126,15 @@ impl SpatialDirectionalTreeSettings {
         require(depth <= MAX_SPATIAL_DEPTH, "max_spatial_depth", depth as f64, "in 0..=24")?;
         let mix = self.uniform_mix;
         require((0.0..=1.0).contains(&mix), "uniform_mix", mix as f64, "in [0, 1]")?;
+        // An integral estimated from Q would read the RMS radiance as the mean and feed
+        // it back into the targets.
+        let path = self.update_rule.integral == IntegralEstimator::PathContinuation;
+        require(
+            path || !self.second_moment,
+            "second_moment",
+            1.0,
+            "off unless the integral estimator is the path's continuation",
+        )?;
         Ok(())
     }
 

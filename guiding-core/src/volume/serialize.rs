@@ -62,11 +62,7 @@ pub(crate) fn encode(volume: &IrradianceVolume) -> Vec<u8> {
 fn read_settings(r: &mut ByteReader<'_>) -> Result<IrradianceVolumeSettings, Error> {
     let budget_bytes = usize::try_from(r.u64()?).map_err(|_| invalid_field("budget_bytes", 0, "addressable"))?;
     let initial_share = r.f32()?;
-    let given = match r.u32()? {
-        0 => false,
-        1 => true,
-        _ => return Err(invalid_field("resolution_given", 0, "0 or 1")),
-    };
+    let given = r.flag("resolution_given")?;
     let resolution = [r.u32()?, r.u32()?, r.u32()?];
     let layout = SphereLayout { resolution: [r.u32()?, r.u32()?] };
     let (split_updates_per_patch, initial_q, q_floor, uniform_mix) = (r.f32()?, r.f32()?, r.f32()?, r.f32()?);

@@ -258,6 +258,14 @@ fn settings_out_of_range_are_refused() {
     }
     let tiny = SpatialDirectionalTreeSettings { budget_bytes: 16, ..Default::default() };
     assert!(matches!(SpatialDirectionalTree::new(Vec3::ZERO, Vec3::ONE, tiny), Err(Error::BudgetTooSmall { .. })));
+    // The second moment with an integral read from Q is refused by name; the mean fit
+    // takes any integral.
+    let rule = UpdateRule { integral: crate::update_rule::IntegralEstimator::BsdfSampled, ..Default::default() };
+    let from_q = SpatialDirectionalTreeSettings { update_rule: rule, ..Default::default() };
+    let refused = SpatialDirectionalTree::new(Vec3::ZERO, Vec3::ONE, from_q);
+    assert!(matches!(refused, Err(Error::InvalidSetting { name: "second_moment", .. })));
+    let mean = SpatialDirectionalTreeSettings { second_moment: false, ..from_q };
+    assert!(SpatialDirectionalTree::new(Vec3::ZERO, Vec3::ONE, mean).is_ok());
 }
 
 #[test]
