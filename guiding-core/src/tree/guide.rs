@@ -320,10 +320,8 @@ impl SpatialDirectionalTree {
             }
             // Each half picks the axis its records' normals lie along (the counts were
             // kept per half for this); a half that picks a new one gets its tree turned.
-            // A leaf of a tree per axis keeps that axis.
             let counts = core::mem::take(&mut self.leaf_counts[leaf as usize]);
-            let turns = !self.settings.trees_per_axis;
-            let axes = [0, 1].map(|h| counts.majority_axis(&[h]).filter(|_| turns).unwrap_or(old.axis));
+            let axes = [0, 1].map(|h| self.axis_for(&counts, &[h], old.axis));
             let tree_nodes = quadtree::node_count(&self.quad, old.root);
             let added = (axes[0] != old.axis) as usize * ROTATED_NODES
                 + if axes[1] != old.axis { ROTATED_NODES } else { tree_nodes };
@@ -369,6 +367,16 @@ impl SpatialDirectionalTree {
             }
             self.quad = out;
         }
+    }
+
+    /// The axis a leaf built around `axis` should turn its square to, by its records in
+    /// `halves`: the one most of their normals lie along, if any; a leaf of a tree per
+    /// axis keeps its tree's.
+    fn axis_for(&self, counts: &LeafCounts, halves: &[usize], axis: u32) -> u32 {
+        if self.settings.trees_per_axis {
+            return axis;
+        }
+        counts.majority_axis(halves).unwrap_or(axis)
     }
 
     /// Appends the tree at `root` (built around `old_axis`) turned to `axis`; returns
@@ -531,10 +539,8 @@ impl Guide for SpatialDirectionalTree {
                 node_cap: node_budget.saturating_sub(leaf_count - index - 1).max(out.len() + 1),
             };
             // A leaf whose records' normals mostly lie along another axis turns its square
-            // to it (where the budget has room), so their hemispheres are halves of it; a
-            // leaf of a tree per axis keeps its tree's.
-            let majority = self.leaf_counts[index].majority_axis(&[0, 1]).filter(|_| !self.settings.trees_per_axis);
-            let best = majority.unwrap_or(leaf.axis);
+            // to it (where the budget has room), so their hemispheres are halves of it.
+            let best = self.axis_for(&self.leaf_counts[index], &[0, 1], leaf.axis);
             let turns = best != leaf.axis && out.len() + ROTATED_NODES <= rule.node_cap;
             let (root, flux) = if turns {
                 unrotated.clear();
