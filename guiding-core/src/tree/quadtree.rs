@@ -85,6 +85,32 @@ fn choose(u: &mut f32, a: f32, b: f32) -> bool {
     high
 }
 
+/// Picks one of a node's four cells by their probabilities `p` with `u` ∈ [0, 1) and
+/// rescales `u` to [0, 1) within the cell picked. One number picks among all four, so a
+/// level's pick waits on one comparison chain, not two (the second number's pick waited
+/// on the first's rescale); the division that rescales `u` is needed only two levels on.
+#[inline]
+fn pick_cell(u: &mut f32, p: [f32; 4]) -> usize {
+    let (c1, c2) = (p[0], p[0] + p[1]);
+    let c3 = c2 + p[2];
+    let total = c3 + p[3];
+    if total.is_nan() || total <= 0.0 {
+        // All empty, or damaged data: four equal cells.
+        let cell = ((*u * 4.0) as usize).min(3);
+        *u = (*u * 4.0 - cell as f32).clamp(0.0, ONE_BELOW);
+        return cell;
+    }
+    let scaled = *u * total;
+    let mut cell = (scaled >= c1) as usize + (scaled >= c2) as usize + (scaled >= c3) as usize;
+    // u·total can round up onto the upper edge of the last cells when they are empty.
+    while cell > 0 && p[cell] <= 0.0 {
+        cell -= 1;
+    }
+    let low = [0.0, c1, c2, c3][cell];
+    *u = ((scaled - low) / p[cell]).clamp(0.0, ONE_BELOW);
+    cell
+}
+
 /// A point of the square drawn with the tree's density from `u` ∈ [0, 1)², and the
 /// density there relative to the uniform one: one descent, the uniform numbers rescaled
 /// at each level (no further random numbers). `half` restricts the draw to the half
@@ -95,35 +121,47 @@ pub(crate) fn sample_square(nodes: &[QuadNode], root: u32, u: Vec2, half: Option
 }
 
 /// [`sample_square`] by the cell probabilities `probabilities` over `nodes`.
+///
+/// The levels take turns with the two numbers: each level picks one of four cells with
+/// one of them ([`pick_cell`]) while the other's rescale from the level before is still
+/// in flight. What is left of both places the point in the leaf cell reached.
 #[inline]
 pub(crate) fn sample_square_by<P: CellProbabilities + ?Sized>(
     nodes: &[QuadNode],
     probabilities: &P,
     root: u32,
-    mut u: Vec2,
+    u: Vec2,
     half: Option<bool>,
 ) -> (Vec2, f32) {
     let (mut origin, mut size, mut node, mut density) = (Vec2::ZERO, 1.0f32, root as usize, 1.0f32);
+    let mut u = [u.x, u.y];
+    let mut turn = 0usize;
     let mut forced = half;
     loop {
         let probability = probabilities.cells(node);
-        let [p0, p1, p2, p3] = probability;
-        let ix = match forced.take() {
-            Some(high) => high,
-            None => choose(&mut u.x, p0 + p2, p1 + p3),
+        let cell = match forced.take() {
+            // The half's side is given: the number v picks between its two cells, and u
+            // takes the next level.
+            Some(high) => {
+                let ix = high as usize;
+                let [low, high] = [probability[ix], probability[ix + 2]];
+                ix + 2 * choose(&mut u[1], low, high) as usize
+            }
+            None => {
+                let cell = pick_cell(&mut u[turn], probability);
+                turn ^= 1;
+                cell
+            }
         };
-        let (low, high) = (if ix { p1 } else { p0 }, if ix { p3 } else { p2 });
-        let iy = choose(&mut u.y, low, high);
-        let cell = ix as usize + 2 * iy as usize;
         density *= 4.0 * probability[cell];
         size *= 0.5;
-        origin += Vec2::new(ix as u32 as f32, iy as u32 as f32) * size;
+        origin += Vec2::new((cell & 1) as f32, (cell >> 1) as f32) * size;
         match nodes[node].child[cell] {
             0 => {
                 // Kept inside the cell drawn: origin + u·size can round up onto its far edge.
                 let end = origin + Vec2::splat(size);
                 let below = Vec2::new(f32::from_bits(end.x.to_bits() - 1), f32::from_bits(end.y.to_bits() - 1));
-                return ((origin + u * size).min(below), density);
+                return ((origin + Vec2::new(u[0], u[1]) * size).min(below), density);
             }
             child => node = child as usize,
         }
@@ -435,6 +473,40 @@ mod tests {
                 assert_eq!(q.x >= 0.5, high, "{q} outside its half");
                 assert_eq!(square_density(&nodes, root, q), density);
             }
+        }
+    }
+
+    #[test]
+    fn a_pick_never_lands_in_an_empty_cell_and_keeps_its_number_in_range() {
+        let cases: [([f32; 4], f32, usize); 7] = [
+            ([0.5, 0.5, 0.0, 0.0], ONE_BELOW, 1),
+            ([0.0, 0.0, 0.0, 1.0], 0.0, 3),
+            ([0.0, 1.0, 0.0, 0.0], 0.999, 1),
+            ([0.25, 0.0, 0.75, 0.0], 0.25, 2),
+            ([0.25, 0.0, 0.75, 0.0], 0.2499, 0),
+            ([0.0; 4], 0.6, 2),
+            ([f32::NAN, 0.5, 0.5, 0.0], 0.1, 0),
+        ];
+        for (p, u, expected) in cases {
+            let mut rescaled = u;
+            let cell = pick_cell(&mut rescaled, p);
+            assert_eq!(cell, expected, "{p:?} at {u}");
+            assert!((0.0..1.0).contains(&rescaled), "{p:?} at {u} rescaled to {rescaled}");
+        }
+        // Across a node, the picks follow the probabilities and the rescaled numbers
+        // stay uniform within each cell.
+        let p = [0.1, 0.2, 0.3, 0.4];
+        let (mut counts, mut means) = ([0u32; 4], [0.0f64; 4]);
+        let n = 100_000;
+        for i in 0..n {
+            let mut u = (i as f32 + 0.5) / n as f32;
+            let cell = pick_cell(&mut u, p);
+            counts[cell] += 1;
+            means[cell] += u as f64;
+        }
+        for cell in 0..4 {
+            assert!((counts[cell] as f32 / n as f32 - p[cell]).abs() < 1e-3, "{counts:?}");
+            assert!((means[cell] / counts[cell] as f64 - 0.5).abs() < 1e-3, "{means:?}");
         }
     }
 
