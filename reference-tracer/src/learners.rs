@@ -5,6 +5,7 @@
 use guiding_core::{EnvTileGuide, FocalGuide, FocalGuideSettings, LightGuide, NextEventGate, StrategyShares};
 
 use crate::directional_guide::{DirectionalGuide, DirectionalGuideSettings};
+use crate::integrator::Method;
 use crate::render::RenderSettings;
 use crate::scene::Scene;
 
@@ -36,6 +37,17 @@ pub struct SessionLearners {
 }
 
 impl SessionLearners {
+    /// The directional guide `method` renders with: the session's, where the method is
+    /// guided (an unguided render of a session that holds one leaves it alone).
+    pub fn guide_for(&self, method: Method) -> Option<&DirectionalGuide> {
+        self.guide.as_ref().filter(|_| method.uses_guide())
+    }
+
+    /// [`guide_for`](Self::guide_for), to learn into.
+    pub fn guide_for_mut(&mut self, method: Method) -> Option<&mut DirectionalGuide> {
+        self.guide.as_mut().filter(|_| method.uses_guide())
+    }
+
     /// Builds, at the first render of `settings`' method that needs them, the learners
     /// that method brings: the focal guide, the learned shares and W.
     pub(crate) fn build_for(&mut self, scene: &Scene, settings: &RenderSettings) -> Result<(), String> {

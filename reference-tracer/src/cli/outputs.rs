@@ -35,7 +35,7 @@ pub fn statistics_json(
     let c = &statistics.counters;
     let seconds = statistics.render_seconds.max(1e-9);
     let mean = image.mean();
-    let guide = session.learners.guide.as_ref().filter(|_| method.uses_guide()).map(|g| {
+    let guide = session.learners.guide_for(method).map(|g| {
         let s = g.stats();
         serde_json::json!({
             "structure": g.structure().name(),
@@ -77,7 +77,7 @@ pub fn statistics_json(
         "scene": session.scene.path.display().to_string(),
         "method": method.name(),
         "plan": session.plan.describe(),
-        "learned": session.learners.guide.as_ref().filter(|_| method.uses_guide()).map(|g| g.describe()),
+        "learned": session.learners.guide_for(method).map(|g| g.describe()),
         "shares": describe_shares(session, method),
         "light_guide": light_guide,
         "next_event_gate": gate,

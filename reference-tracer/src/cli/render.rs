@@ -137,7 +137,7 @@ pub(super) fn run_render(args: &RenderArgs) -> Result<(), String> {
             statistics.kept_paths_per_second()
         );
     }
-    if let Some(guide) = session.learners.guide.as_ref().filter(|_| args.integrator.uses_guide()) {
+    if let Some(guide) = session.learners.guide_for(args.integrator) {
         eprintln!("learned: {}", guide.describe());
     }
     if let Some(shares) = describe_shares(&session, args.integrator) {
@@ -299,7 +299,7 @@ fn load_sampling_guides(args: &RenderArgs, session: &mut Session) -> Result<(), 
 /// in an error: each must name a guide this render builds, in a folder that exists.
 fn check_save_targets(args: &RenderArgs, session: &Session) -> Result<(), String> {
     let targets = [
-        ("--save-guide", &args.save_guide, session.learners.guide.is_some() && args.integrator.uses_guide(), NO_GUIDE),
+        ("--save-guide", &args.save_guide, session.learners.guide_for(args.integrator).is_some(), NO_GUIDE),
         ("--save-light-guide", &args.save_light_guide, session.learners.light_guide.is_some(), NO_LIGHT_GUIDE),
         ("--save-env-guide", &args.save_env_guide, session.learners.environment_guide.is_some(), NO_ENV_GUIDE),
     ];

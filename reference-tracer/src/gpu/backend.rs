@@ -30,7 +30,7 @@ impl Backend for GpuBackend {
                         to learn from (use --nee-kickstart off)"
                 .into());
         }
-        let guide = learners.guide.as_mut().filter(|_| method.uses_guide());
+        let guide = learners.guide_for_mut(method);
         if guide.is_some() && settings.schedule != Schedule::Online {
             return Err("the GPU tracer learns online only (--schedule online)".into());
         }

@@ -67,7 +67,7 @@ impl Session {
     pub fn learned_bytes(&self, method: Method) -> usize {
         let learners = &self.learners;
         let guided = method.uses_guide();
-        let directions = learners.guide.as_ref().filter(|_| guided).map_or(0, |g| g.stats().memory_bytes)
+        let directions = learners.guide_for(method).map_or(0, |g| g.stats().memory_bytes)
             + learners.guide_shares.as_ref().filter(|_| guided).map_or(0, StrategyShares::memory_bytes);
         let lights = learners.light_guide.as_ref().map_or(0, LightGuide::memory_bytes)
             + learners.gate.as_ref().map_or(0, NextEventGate::memory_bytes);
