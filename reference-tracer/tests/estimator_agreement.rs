@@ -178,11 +178,8 @@ fn methods_and_guides(probes: usize) -> Vec<(String, Method, Option<DirectionalG
     // A low split threshold makes the tree split in space within the first passes.
     // The second moment (the default) under the path's continuation, the mean fit under
     // an integral read from Q (the settings refuse the second moment there).
-    let tree = |update_rule: UpdateRule| SpatialDirectionalTreeSettings {
-        update_rule,
-        min_split_records: 64,
-        second_moment: update_rule.integral == IntegralEstimator::PathContinuation,
-        ..Default::default()
+    let tree = |update_rule: UpdateRule| {
+        SpatialDirectionalTreeSettings { min_split_records: 64, ..Default::default() }.with_update_rule(update_rule)
     };
     let path = UpdateRule { learning_rate: LearningRate::SimpleAverage, integral: IntegralEstimator::PathContinuation };
     let sampled = UpdateRule { learning_rate: LearningRate::Exponential { alpha: 0.3 }, ..Default::default() };

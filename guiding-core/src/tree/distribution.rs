@@ -217,6 +217,7 @@ mod tests {
     use super::*;
     use crate::guide::Guide;
     use crate::low_discrepancy::Pcg32;
+    use crate::tree::guide::tests::teach_peak_by_own_samples;
     use crate::tree::{SpatialDirectionalTree, SpatialDirectionalTreeSettings, TreeRegion};
 
     /// E over the sampler of 1/pdf is the solid angle of the support (2π for the
@@ -272,16 +273,7 @@ mod tests {
         assert_eq!(tree.leaf_axis(region.leaf), Some(2));
         let light = Vec3::new(0.3, 0.9, -0.3).normalize();
         let mut rng = Pcg32::new(4, 2);
-        for _ in 0..6 {
-            let snapshot = tree.clone();
-            let d = snapshot.distribution(region);
-            for _ in 0..50_000 {
-                let s = d.sample(rng.next_vec2());
-                let target = if s.direction.dot(light) > 0.995 { 100.0 } else { 0.1 };
-                tree.update_sampled(region, s.direction, target, s.pdf);
-            }
-            tree.rebuild_sampling();
-        }
+        teach_peak_by_own_samples(&mut tree, region, (light, 0.995, 100.0), (6, 50_000), &mut rng);
         assert_eq!(tree.leaf_axis(region.leaf), Some(1), "the square turned to the normals' axis");
         let d = tree.distribution(region);
         assert!(matches!(d.mode, HemisphereMode::Half { high: true, .. }), "{:?}", d.mode);

@@ -140,18 +140,15 @@ impl SpatialDirectionalTree {
         let extent = size.max(Vec3::splat(size.max_element().max(1.0) * 1e-6));
         // One leaf per spatial tree, its square around its tree's axis (z for a single
         // tree, until its records say otherwise).
-        let axes: &[u32] = if settings.trees_per_axis { &[0, 1, 2] } else { &[2] };
-        let leaves: Vec<SpatialLeaf> = axes
-            .iter()
-            .enumerate()
-            .map(|(index, &axis)| SpatialLeaf {
-                root: index as u32,
+        let leaves: Vec<SpatialLeaf> = (0..trees as u32)
+            .map(|index| SpatialLeaf {
+                root: index,
                 flux: 0.0,
                 weight: 0.0,
-                parent: Parent::Root { tree: index as u32 },
+                parent: Parent::Root { tree: index },
                 extent,
                 depth: 0,
-                axis,
+                axis: if settings.trees_per_axis { index } else { 2 },
             })
             .collect();
         let mut tree = Self {
@@ -607,4 +604,4 @@ impl Guide for SpatialDirectionalTree {
 }
 
 #[cfg(test)]
-mod tests;
+pub(super) mod tests;

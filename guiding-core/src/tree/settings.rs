@@ -138,6 +138,16 @@ impl SpatialDirectionalTreeSettings {
         Ok(())
     }
 
+    /// These settings learning by `update_rule`, the second moment kept only where the
+    /// rule's integral is the path's continuation (an integral read from Q would take
+    /// the root mean square for the mean and feed it back): the defaults with any rule.
+    /// A second moment asked for beside another integral afterwards is still refused by
+    /// [`validate`](Self::validate).
+    pub fn with_update_rule(self, update_rule: UpdateRule) -> Self {
+        let second_moment = self.second_moment && update_rule.integral == IntegralEstimator::PathContinuation;
+        Self { update_rule, second_moment, ..self }
+    }
+
     /// How many spatial trees the settings keep: three with `trees_per_axis`, else one.
     pub fn spatial_tree_count(&self) -> usize {
         if self.trees_per_axis {

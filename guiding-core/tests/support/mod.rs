@@ -243,10 +243,8 @@ impl GuideAccess for GaussianMixture {
 /// A spatial × directional tree over [`box_walls`]' box with the given rule (one leaf
 /// until it learns).
 pub fn spatial_directional_tree(rule: UpdateRule) -> SpatialDirectionalTree {
-    // The second moment (the default) wherever the rule allows it: with the path's
-    // continuation as the integral.
-    let second_moment = rule.integral == guiding_core::IntegralEstimator::PathContinuation;
-    let settings = SpatialDirectionalTreeSettings { update_rule: rule, second_moment, ..Default::default() };
+    // The second moment (the default) wherever the rule allows it.
+    let settings = SpatialDirectionalTreeSettings::default().with_update_rule(rule);
     SpatialDirectionalTree::new(Vec3::NEG_ONE, Vec3::ONE, settings).expect("tree over the box")
 }
 

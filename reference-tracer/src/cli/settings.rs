@@ -67,15 +67,13 @@ impl TraceOptions {
                 if !(self.tree_mib.is_finite() && self.tree_mib > 0.0) {
                     return Err(format!("--tree-mib {} must be positive", self.tree_mib));
                 }
-                let defaults = SpatialDirectionalTreeSettings::default();
-                let integral = self.integral.unwrap_or(defaults.update_rule.integral);
-                // The second moment by default where the integral allows it (an integral
-                // from Q would read its RMS as the mean); asked for with another, the
-                // settings' check names the clash.
-                let path = integral == IntegralEstimator::PathContinuation;
+                let integral = self.integral.unwrap_or(SpatialDirectionalTreeSettings::default().update_rule.integral);
+                // The second moment by default where the integral allows it; asked for
+                // with another, the settings' check names the clash.
+                let defaults = SpatialDirectionalTreeSettings::default()
+                    .with_update_rule(UpdateRule { learning_rate: self.learning_rate, integral });
                 let settings = SpatialDirectionalTreeSettings {
                     budget_bytes: (self.tree_mib * (1 << 20) as f64) as usize,
-                    update_rule: UpdateRule { learning_rate: self.learning_rate, integral },
                     uniform_mix: self.uniform_mix.unwrap_or(defaults.uniform_mix),
                     spatial_threshold: self.tree_threshold.unwrap_or(defaults.spatial_threshold),
                     flux_fraction: self.tree_flux_fraction.unwrap_or(defaults.flux_fraction),
@@ -83,7 +81,7 @@ impl TraceOptions {
                     mixed_normal_share: self.tree_mixed_share.unwrap_or(defaults.mixed_normal_share),
                     cosine_product: self.tree_cosine.unwrap_or(defaults.cosine_product),
                     trees_per_axis: self.tree_per_axis.unwrap_or(defaults.trees_per_axis),
-                    second_moment: self.tree_second_moment.unwrap_or(defaults.second_moment && path),
+                    second_moment: self.tree_second_moment.unwrap_or(defaults.second_moment),
                     ..defaults
                 };
                 settings.validate().map_err(|e| format!("tree guide: {e}"))?;

@@ -26,6 +26,28 @@ fn teach(
     }
 }
 
+/// Teaches `region` a radiance field of 0.1 everywhere and `peak` within `cos_within` of
+/// `light`, through directions the region's own distribution draws: `rounds` epochs of
+/// `per_round` records, each epoch sampled from the tree as the last refit left it.
+pub(crate) fn teach_peak_by_own_samples(
+    tree: &mut SpatialDirectionalTree,
+    region: TreeRegion,
+    (light, cos_within, peak): (Vec3, f32, f32),
+    (rounds, per_round): (u32, u32),
+    rng: &mut Pcg32,
+) {
+    for _ in 0..rounds {
+        let snapshot = tree.clone();
+        let d = snapshot.distribution(region);
+        for _ in 0..per_round {
+            let s = d.sample(rng.next_vec2());
+            let target = if s.direction.dot(light) > cos_within { peak } else { 0.1 };
+            tree.update_sampled(region, s.direction, target, s.pdf);
+        }
+        tree.rebuild_sampling();
+    }
+}
+
 #[test]
 fn learned_flux_does_not_depend_on_the_density_that_drew_the_directions() {
     // Bug 2 of the guiding issue: the same radiance field learned through mixtures
@@ -45,7 +67,6 @@ fn learns_alike_at_both_densities(second_moment: bool) {
         let region = tree.locate(Vec3::ZERO, Vec3::Z).unwrap();
         let mut rng = Pcg32::new(11, 3);
         for _ in 0..6 {
-            let distribution = tree.distribution(region);
             let frame = Frame::from_normal(Vec3::Z);
             let snapshot = tree.clone();
             let d = snapshot.distribution(region);
@@ -61,7 +82,6 @@ fn learns_alike_at_both_densities(second_moment: bool) {
                 let cosine = wi.z.max(0.0) / PI;
                 (wi, p_guide * d.pdf(wi) + (1.0 - p_guide) * cosine)
             });
-            let _ = distribution;
             tree.rebuild_sampling();
         }
         // The exact flux: 0.1 over the hemisphere plus 99.9 over the cap.
@@ -85,16 +105,7 @@ fn a_narrow_source_is_resolved_far_below_one_degree() {
     // A source 0.5° across: cos > 0.99996.
     let light = Vec3::new(0.3, 0.2, 0.9).normalize();
     let mut rng = Pcg32::new(5, 5);
-    for _ in 0..10 {
-        let snapshot = tree.clone();
-        let d = snapshot.distribution(region);
-        for _ in 0..100_000 {
-            let s = d.sample(rng.next_vec2());
-            let target = if s.direction.dot(light) > 0.99996 { 1e4 } else { 0.1 };
-            tree.update_sampled(region, s.direction, target, s.pdf);
-        }
-        tree.rebuild_sampling();
-    }
+    teach_peak_by_own_samples(&mut tree, region, (light, 0.99996, 1e4), (10, 100_000), &mut rng);
     let depth = tree.directional_depth(region.leaf);
     assert!(depth >= 9, "depth {depth}");
     // The guide's density at the source against the cosine density there.
@@ -266,6 +277,14 @@ fn settings_out_of_range_are_refused() {
     assert!(matches!(refused, Err(Error::InvalidSetting { name: "second_moment", .. })));
     let mean = SpatialDirectionalTreeSettings { second_moment: false, ..from_q };
     assert!(SpatialDirectionalTree::new(Vec3::ZERO, Vec3::ONE, mean).is_ok());
+    // The defaults taken to a rule keep the second moment only under the path's
+    // continuation, so they are valid with any rule.
+    let defaults = SpatialDirectionalTreeSettings::default();
+    assert!(!defaults.with_update_rule(rule).second_moment);
+    assert!(SpatialDirectionalTree::new(Vec3::ZERO, Vec3::ONE, defaults.with_update_rule(rule)).is_ok());
+    let path = UpdateRule { integral: crate::update_rule::IntegralEstimator::PathContinuation, ..rule };
+    assert!(defaults.with_update_rule(path).second_moment);
+    assert!(!SpatialDirectionalTreeSettings { second_moment: false, ..defaults }.with_update_rule(path).second_moment);
 }
 
 #[test]
