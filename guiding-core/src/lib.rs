@@ -4,6 +4,7 @@
 
 extern crate alloc;
 
+mod efficiency_roulette;
 // Shared by every guide structure; a build with none of them compiled in leaves them unused.
 #[cfg(any(feature = "hemisphere", feature = "volume", feature = "tree"))]
 mod atan2;
@@ -68,6 +69,7 @@ pub use bytes::reseal_checksum;
 pub use distribution::{
     DirectionSample, DirectionalDistribution, UniformHemisphere, UniformSphere, MIN_SAMPLED_COS_THETA,
 };
+pub use efficiency_roulette::{EfficiencyRoulette, RouletteCell, RouletteImage, MIN_SURVIVAL};
 pub use error::{DecodeError, Error};
 pub use frame::Frame;
 pub use geometry::{square_to_triangle_barycentrics, Hit, Ray, Triangle};

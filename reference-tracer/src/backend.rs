@@ -83,6 +83,7 @@ impl Backend for CpuBackend {
             lights: learners.light_guide.as_mut(),
             gate: learners.gate.as_mut(),
             environment: learners.environment_guide.as_mut(),
+            roulette: learners.roulette.as_mut(),
             ..Learners::default()
         };
         let job = RenderJob { scene, intersector: &self.intersector, learners: borrowed, settings, on_pass };
@@ -109,8 +110,8 @@ struct RenderJob<'a, 'f> {
 impl RenderJob<'_, '_> {
     /// Renders with the guide `directions` and W `importance` of structure `G`.
     fn run<G: Guide>(self, directions: Option<&mut G>, importance: Option<&mut G>) -> (Image, RenderStatistics) {
-        let Learners { focal, guide_shares, lights, gate, environment, .. } = self.learners;
-        let learners = Learners { directions, importance, focal, guide_shares, lights, gate, environment };
+        let Learners { focal, guide_shares, lights, gate, environment, roulette, .. } = self.learners;
+        let learners = Learners { directions, importance, focal, guide_shares, lights, gate, environment, roulette };
         render(self.scene, self.intersector, learners, self.settings, self.on_pass)
     }
 }

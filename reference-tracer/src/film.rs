@@ -145,6 +145,20 @@ impl Film {
         pixel[3] += l * l;
     }
 
+    /// The current iteration's variance of one sample's luminance, per pixel (row-major);
+    /// `None` under two passes.
+    pub fn sample_variances(&self) -> Option<Vec<f32>> {
+        if self.passes < 2 {
+            return None;
+        }
+        let n = self.passes as f64;
+        let variances = self.sum.iter().map(|sum| {
+            let mean = luminance(Vec3::new(sum[0] as f32, sum[1] as f32, sum[2] as f32)) as f64 / n;
+            ((sum[3] - n * mean * mean) / (n - 1.0)).max(0.0) as f32
+        });
+        Some(variances.collect())
+    }
+
     /// Counts a pass whose samples have been added.
     pub fn end_pass(&mut self) {
         self.passes += 1;

@@ -2,10 +2,12 @@
 //! method's own (the focal guide, the learned shares, W) at the first render that needs
 //! it. A render borrows them typed ([`crate::render::Learners`]).
 
-use guiding_core::{EnvTileGuide, FocalGuide, FocalGuideSettings, LightGuide, NextEventGate, StrategyShares};
+use guiding_core::{
+    EfficiencyRoulette, EnvTileGuide, FocalGuide, FocalGuideSettings, LightGuide, NextEventGate, StrategyShares,
+};
 
 use crate::directional_guide::{DirectionalGuide, DirectionalGuideSettings};
-use crate::integrator::Method;
+use crate::integrator::{Method, Roulette};
 use crate::render::RenderSettings;
 use crate::scene::Scene;
 
@@ -23,6 +25,9 @@ pub struct SessionLearners {
     pub focal_guide: Option<FocalGuide>,
     /// The directional guide's learned shares, built at the first render that learns them.
     pub guide_shares: Option<StrategyShares>,
+    /// The efficiency-aware roulette's learned cells, built at the first render that ends
+    /// its paths by it.
+    pub roulette: Option<EfficiencyRoulette>,
     /// The focal guide's settings.
     pub focal_settings: FocalGuideSettings,
     /// The learned guide share's cost of guiding (`--guide-share-cost`).
@@ -65,6 +70,11 @@ impl SessionLearners {
             let (resolution, cost) = (self.focal_settings.share_resolution, self.guide_share_cost);
             let shares = StrategyShares::new(low, high, resolution).and_then(|s| s.with_cost(cost));
             self.guide_shares = Some(shares.map_err(|e| format!("--guide-share-cost: {e}"))?);
+        }
+        if let (Roulette::Efficiency { cells }, None, true) = (integrator.roulette, &self.roulette, guided) {
+            let (low, high) = scene.bounds();
+            let roulette = EfficiencyRoulette::new(low, high, cells).map_err(|e| format!("--roulette-cells: {e}"))?;
+            self.roulette = Some(roulette);
         }
         // W guides the light subpaths of bdpt-guided and vpl-guided.
         let bidirectional_guided =

@@ -19,6 +19,7 @@ pub mod environment;
 pub mod film;
 #[cfg(feature = "gpu")]
 pub mod gpu;
+pub mod image_estimates;
 pub mod import;
 pub mod integrator;
 pub mod learners;

@@ -2,6 +2,10 @@
 
 use crate::output::Image;
 
+/// The ε of relative errors: a pixel's squared error counts over (R² + ε), so black
+/// pixels do not divide by zero.
+pub const RELATIVE_EPSILON: f32 = 0.01;
+
 /// Errors averaged over pixels and channels.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct ImageError {
@@ -31,7 +35,7 @@ pub fn image_error(image: &Image, reference: &Image) -> Option<ImageError> {
         for c in 0..3 {
             let (i, r) = (i[c] as f64, r[c] as f64);
             let d = i - r;
-            pixel += d * d / (r * r + 0.01);
+            pixel += d * d / (r * r + RELATIVE_EPSILON as f64);
             sums[1] += d * d;
             sums[2] += d.abs() / (r.abs() + 0.01);
         }

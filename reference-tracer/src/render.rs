@@ -6,15 +6,16 @@ use std::time::Instant;
 
 use glam::Vec3;
 use guiding_core::{
-    EnvTileGuide, FocalGuide, Guide, HemisphereGrid, Intersector, LightGuide, NextEventGate, PathRecorder, Pcg32,
-    StrategyShares,
+    EfficiencyRoulette, EnvTileGuide, FocalGuide, Guide, HemisphereGrid, Intersector, LightGuide, NextEventGate,
+    PathRecorder, Pcg32, StrategyShares,
 };
 use rayon::prelude::*;
 
 use crate::film::{Combine, Film};
+use crate::image_estimates::ImageEstimates;
 use crate::integrator::{
     BidirectionalScratch, EnvironmentSampling, IntegratorSettings, LightSelection, PathCounters, PathScratch,
-    PathTracer,
+    PathTracer, Roulette,
 };
 use crate::output::Image;
 use crate::scene::Scene;
@@ -129,6 +130,8 @@ pub struct Learners<'a, G: Guide = HemisphereGrid> {
     pub gate: Option<&'a mut NextEventGate>,
     /// Learned environment sampling (`EnvironmentSampling::Tiles`).
     pub environment: Option<&'a mut EnvTileGuide>,
+    /// The efficiency-aware roulette's learned cells (`Roulette::Efficiency`).
+    pub roulette: Option<&'a mut EfficiencyRoulette>,
 }
 
 impl<G: Guide> Learners<'_, G> {
@@ -157,6 +160,7 @@ impl<G: Guide> Learners<'_, G> {
             lights: self.lights.filter(|_| integrator.light_selection == LightSelection::Learned),
             gate: self.gate.filter(|_| method.uses_nee()),
             environment: self.environment.filter(|_| integrator.environment_sampling == EnvironmentSampling::Tiles),
+            roulette: self.roulette.filter(|_| guided && integrator.roulette != Roulette::Throughput),
             directions,
         }
     }
@@ -170,6 +174,7 @@ impl<G: Guide> Learners<'_, G> {
             || self.lights.is_some()
             || self.gate.is_some()
             || self.environment.is_some()
+            || self.roulette.is_some()
     }
 }
 
@@ -183,6 +188,7 @@ impl<G: Guide> Default for Learners<'_, G> {
             lights: None,
             gate: None,
             environment: None,
+            roulette: None,
         }
     }
 }
@@ -207,6 +213,7 @@ pub fn render<I: Intersector, G: Guide>(
         lights: mut light_guide,
         mut gate,
         environment: mut environment_guide,
+        mut roulette,
     } = learners;
     let (width, height) = (scene.camera.width as usize, scene.camera.height as usize);
     let mut film = Film::new(width, height, settings.combine);
@@ -221,6 +228,8 @@ pub fn render<I: Intersector, G: Guide>(
     let mut splat_groups: Vec<SplatGroup<G::Region>> = Vec::new();
     // What the tracer derives from the scene, once; each pass adds its learners.
     let scene_tracer = PathTracer::<I, G>::new(scene, intersector, settings.integrator);
+    // What the efficiency-aware roulette weighs paths against.
+    let mut image_estimates = ImageEstimates::default();
     loop {
         let pass = traced;
         traced += 1;
@@ -238,6 +247,7 @@ pub fn render<I: Intersector, G: Guide>(
             .with_guide_shares(guide_shares.as_deref())
             .with_gate(gate.as_deref())
             .with_importance_guide(importance.as_deref())
+            .with_roulette(roulette.as_deref(), image_estimates.relative_variance(), image_estimates.path_rays())
             .with_connection_threshold(connection_threshold(settings.integrator.connection_roulette, &statistics));
         let pass_seed = pass_seed(settings.seed, pass);
         let (counters, pass_sum) = if settings.integrator.method.splats() {
@@ -245,9 +255,11 @@ pub fn render<I: Intersector, G: Guide>(
         } else if settings.integrator.method.gathers_virtual_lights() {
             vpl_pass(&tracer, &mut film, pass_seed)
         } else {
-            camera_pass(&tracer, &mut film, pass_seed)
+            camera_pass(&tracer, &mut film, &image_estimates, pass_seed)
         };
+        film.end_pass();
         statistics.add_pass(pass_sum, width * height, counters);
+        image_estimates.count_pass(&counters);
         let rebuild = Instant::now();
         let step = match settings.schedule {
             Schedule::Online => None,
@@ -269,6 +281,10 @@ pub fn render<I: Intersector, G: Guide>(
             }
             if let Some(shares) = guide_shares.as_deref_mut() {
                 shares.rebuild_sampling();
+            }
+            if let Some(roulette) = roulette.as_deref_mut() {
+                roulette.rebuild_sampling();
+                image_estimates.refit(&film);
             }
         }
         // Training stops early where guiding idles: once the shares learned from at least
@@ -328,14 +344,19 @@ fn connection_threshold(roulette: f32, statistics: &RenderStatistics) -> f32 {
 }
 
 /// One camera path per pixel, added to `film`; the pass's counters and radiance sum.
+/// `image_estimates` tells the efficiency-aware roulette what each pixel is expected to
+/// be.
 fn camera_pass<I: Intersector, G: Guide>(
     tracer: &PathTracer<'_, I, G>,
     film: &mut Film,
+    image_estimates: &ImageEstimates,
     pass_seed: u64,
 ) -> (PathCounters, [f64; 3]) {
+    let width = film.width();
     pixel_pass(film, pass_seed, PathScratch::default, |scratch, (x, y), rng, counters| {
         let ray = tracer.camera_ray(x, y, rng);
-        tracer.radiance(ray, rng, scratch, counters)
+        let estimate = image_estimates.pixel(y as usize * width + x as usize);
+        tracer.radiance(ray, estimate, rng, scratch, counters)
     })
 }
 
@@ -499,7 +520,8 @@ pub(crate) enum PassFate {
     Discard,
 }
 
-/// The bookkeeping after a pass has been added to `film` and `statistics`, shared by
+/// The bookkeeping after a pass has been added to `film` (and counted by its `end_pass`)
+/// and to `statistics`, shared by
 /// the CPU and GPU render loops: a pass that leaves the image (`PassFate::Discard`) is
 /// taken out of the film again with the rest of its iteration; otherwise `on_pass` sees
 /// the state. Returns whether the budget is reached.
@@ -512,7 +534,6 @@ pub(crate) fn end_of_pass(
     on_pass: &mut impl FnMut(&Progress<'_>),
 ) -> bool {
     let seconds = start.elapsed().as_secs_f64();
-    film.end_pass();
     if fate != PassFate::Keep {
         statistics.training_passes += 1;
         statistics.training_seconds = seconds;

@@ -12,7 +12,7 @@ use guiding_core::{
 };
 use reference_tracer::directional_guide::DirectionalGuide;
 use reference_tracer::directional_guide::DirectionalGuideSettings;
-use reference_tracer::integrator::{EnvironmentSampling, LightSelection, Method};
+use reference_tracer::integrator::{EnvironmentSampling, LightSelection, Method, Roulette};
 use reference_tracer::render::{Budget, RenderSettings};
 use reference_tracer::scene_intersector::IntersectorChoice;
 use reference_tracer::session::{prepare_with_lights, LightRequest};
@@ -415,6 +415,34 @@ fn assert_split_lights_agree(scene: &std::path::Path, spp: u32, reference_spp: u
     };
     let (_, statistics) = session.render(&render, |_| {}).unwrap();
     support::assert_agree("guided-nee over split lights vs nee", &mean_estimate(&statistics), &reference);
+}
+
+/// The efficiency-aware roulette (learned in the training passes, deciding in the frozen
+/// ones, from the first vertex on) beside the focal guide: guided-nee's mean is nee's,
+/// and the roulette learned cells to decide with.
+fn assert_efficiency_roulette_agrees(scene: &std::path::Path, spp: u32, reference_spp: u32) {
+    let reference = mean_estimate(&render_scene(scene, settings(Method::Nee), None, reference_spp, 17));
+    let integrator = reference_tracer::integrator::IntegratorSettings {
+        focal_probability: 0.5,
+        focal_learning_share: 1.0,
+        guide_probability: 0.0,
+        roulette: Roulette::Efficiency { cells: 8 },
+        ..settings(Method::GuidedNee)
+    };
+    let lights = LightRequest::new(Some(integrator.light_selection), Some(integrator.environment_sampling), true);
+    let mut session = prepare_with_lights(scene, IntersectorChoice::default(), None, lights).unwrap();
+    let render = support::render_settings(integrator, spp, 48, Schedule::Iterative);
+    let (_, statistics) = session.render(&render, |_| {}).unwrap();
+    let roulette = session.learners.roulette.as_ref().expect("the roulette was built");
+    assert!(roulette.cells_known() > 0, "the roulette learned no cell");
+    assert!(statistics.training_passes < spp, "no frozen pass: the roulette never decided");
+    support::assert_agree("guided-nee under the efficiency roulette vs nee", &mean_estimate(&statistics), &reference);
+}
+
+#[test]
+fn cornell_and_door_agree_under_the_efficiency_roulette() {
+    assert_efficiency_roulette_agrees(&support::repository_scene("cornell", 32, 32), 128, 256);
+    assert_efficiency_roulette_agrees(&support::repository_scene("door", 32, 24), 256, 512);
 }
 
 #[test]

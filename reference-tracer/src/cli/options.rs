@@ -300,6 +300,17 @@ pub struct TraceOptions {
     /// darkens more of the light exchanged at shorter range (corners); 0 clamps nothing.
     #[arg(long, default_value_t = crate::integrator::DEFAULT_VPL_MIN_DISTANCE, value_parser = parse_non_negative)]
     pub(super) vpl_min_distance: f32,
+    /// How camera paths of the guided methods end: throughput (Russian roulette past
+    /// --rr-depth by the path's throughput) or efficiency (learned in the training passes
+    /// per cell side: in the frozen passes every vertex weighs what its continuation's
+    /// light varies by against what going on costs and the image's variance; Rath et al.
+    /// 2022, without splitting). Unguided methods, and learning passes, always use
+    /// throughput. Default efficiency for guided-nee on the CPU, else throughput.
+    #[arg(long, value_parser = parse_roulette_kind)]
+    pub(super) roulette: Option<RouletteKind>,
+    /// --roulette efficiency: cells along the scene's longest side, 1..=128.
+    #[arg(long, default_value_t = 32)]
+    pub(super) roulette_cells: u32,
     /// Guided methods: seconds of training passes whose samples are discarded (their
     /// time counts towards --seconds).
     #[arg(long, default_value_t = 0.0)]
@@ -534,5 +545,22 @@ mod tests {
         assert_eq!(parse_guide_choice("none"), Ok(GuideChoice::Off));
         assert_eq!(parse_guide_choice("tree"), Ok(GuideChoice::Structure(GuideStructure::Tree)));
         assert!(parse_guide_choice("octopus").is_err());
+    }
+}
+
+/// `--roulette`: how camera paths of the guided methods end.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RouletteKind {
+    /// By throughput, past `--rr-depth`.
+    Throughput,
+    /// By the learned worth of going on against its cost (efficiency-aware).
+    Efficiency,
+}
+
+fn parse_roulette_kind(name: &str) -> Result<RouletteKind, String> {
+    match name {
+        "throughput" => Ok(RouletteKind::Throughput),
+        "efficiency" => Ok(RouletteKind::Efficiency),
+        _ => Err(format!("unknown roulette `{name}` (throughput, efficiency)")),
     }
 }

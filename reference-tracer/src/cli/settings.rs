@@ -8,10 +8,10 @@ use guiding_core::{
 };
 
 use super::options::GuideShare;
-use super::options::{GuideChoice, TraceOptions};
+use super::options::{GuideChoice, RouletteKind, TraceOptions};
 use crate::backend::Device;
 use crate::directional_guide::{DirectionalGuideSettings, GuideStructure};
-use crate::integrator::{IntegratorSettings, Method, DEFAULT_GUIDE_MIN_ALPHA};
+use crate::integrator::{IntegratorSettings, Method, Roulette, DEFAULT_GUIDE_MIN_ALPHA};
 use crate::plan::GuidePlan;
 use crate::schedule::Schedule;
 use crate::session::LightRequest;
@@ -162,6 +162,16 @@ impl TraceOptions {
         }
     }
 
+    /// `--roulette`, else efficiency for guided-nee on the CPU (the GPU tracer has no
+    /// learned roulette) and throughput for every other method.
+    pub(super) fn roulette(&self, method: Method) -> RouletteKind {
+        match (self.roulette, self.device, method) {
+            (Some(kind), _, _) => kind,
+            (None, Device::Cpu, Method::GuidedNee) => RouletteKind::Efficiency,
+            (None, _, _) => RouletteKind::Throughput,
+        }
+    }
+
     pub(super) fn focal_settings(&self, method: Method) -> Result<FocalGuideSettings, String> {
         let p_focal = self.p_focal(method);
         if !(0.0..=1.0 - self.p_guide()).contains(&p_focal) {
@@ -243,6 +253,12 @@ impl TraceOptions {
             guide_light_subpaths: self.guide_light_subpaths.unwrap_or(true),
             vpl_paths: self.vpl_paths,
             vpl_min_distance: self.vpl_min_distance,
+            roulette: match self.roulette(method) {
+                RouletteKind::Efficiency if method.uses_guide() && !light => {
+                    Roulette::Efficiency { cells: self.roulette_cells }
+                }
+                _ => Roulette::Throughput,
+            },
         }
     }
 

@@ -415,6 +415,7 @@ impl GpuTracer {
                     sum[c] += v[c] as f64;
                 }
             }
+            film.end_pass();
             statistics.add_pass(sum, width * height, counters);
             let learns = self.params.guide_learns != 0;
             let fate = if learns && start.elapsed().as_secs_f64() < settings.train_seconds {

@@ -21,7 +21,7 @@ pub use bidirectional::{BidirectionalScratch, VirtualPointLights};
 pub use counters::{PathCounters, TIMED_PATH_STRIDE};
 pub use method::{EnvironmentSampling, LightSelection, Method};
 pub use settings::{
-    IntegratorSettings, DEFAULT_CONNECTION_ROULETTE, DEFAULT_GUIDE_MIN_ALPHA, DEFAULT_VPL_MIN_DISTANCE,
+    IntegratorSettings, Roulette, DEFAULT_CONNECTION_ROULETTE, DEFAULT_GUIDE_MIN_ALPHA, DEFAULT_VPL_MIN_DISTANCE,
     DEFAULT_VPL_PATHS,
 };
 pub use tracer::{PathScratch, PathTracer, VertexStrategies};

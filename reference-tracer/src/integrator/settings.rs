@@ -72,6 +72,27 @@ pub struct IntegratorSettings {
     /// vpl: the least distance at which a virtual light's 1/d² is taken, as a share of
     /// the scene's extent (the clamp, and the bias it brings).
     pub vpl_min_distance: f32,
+    /// How a camera path decides to end: by its throughput past `rr_depth`, or (guided
+    /// methods) by what its continuation is learned to be worth against its cost.
+    pub roulette: Roulette,
+}
+
+/// How a camera path decides to end (`--roulette`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Roulette {
+    /// Past `rr_depth` vertices, survive with the throughput (at most 0.95).
+    #[default]
+    Throughput,
+    /// Efficiency-aware (guided methods): learned in the training passes per cell side of
+    /// a grid `cells` along the scene's longest side (guiding-core's
+    /// `EfficiencyRoulette`); in the passes that do not learn, at every vertex survive
+    /// with what the continuation's second moment is worth against its cost and the
+    /// image's variance; by the throughput where nothing is learned yet, and in learning
+    /// passes.
+    Efficiency {
+        /// Cells along the scene's longest side, 1..=128.
+        cells: u32,
+    },
 }
 
 /// [`IntegratorSettings::vpl_paths`] by default.
@@ -108,6 +129,7 @@ impl Default for IntegratorSettings {
             guide_light_subpaths: true,
             vpl_paths: DEFAULT_VPL_PATHS,
             vpl_min_distance: DEFAULT_VPL_MIN_DISTANCE,
+            roulette: Roulette::Throughput,
         }
     }
 }

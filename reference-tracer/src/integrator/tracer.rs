@@ -4,9 +4,9 @@
 
 use glam::{Vec2, Vec3};
 use guiding_core::{
-    EnvTileGuide, FocalArrival, FocalGuide, GateCell, Guide, Hit, IntegralEstimator, Intersector, LightCell,
-    LightGuide, NextEventGate, PathRecorder, Pcg32, Ray, SampledDirection, ScatteringFunction, StrategyArrival,
-    StrategyShares,
+    EfficiencyRoulette, EnvTileGuide, FocalArrival, FocalGuide, GateCell, Guide, Hit, IntegralEstimator, Intersector,
+    LightCell, LightGuide, NextEventGate, PathRecorder, Pcg32, Ray, RouletteCell, RouletteImage, SampledDirection,
+    ScatteringFunction, StrategyArrival, StrategyShares,
 };
 
 use super::counters::PathCounters;
@@ -50,13 +50,33 @@ pub struct PathScratch<R> {
     /// The path's unoccluded light samples, where it learns from them
     /// (`IntegratorSettings::nee_kickstart`).
     pub(super) light_samples: Vec<LearnedLightSample<R>>,
+    /// The path's vertices as the adjoint-driven roulette learns from them.
+    pub(super) roulette_vertices: Vec<RouletteVertex>,
     pub(super) clock: GuideClock,
 }
 
 impl<R> Default for PathScratch<R> {
     fn default() -> Self {
-        Self { path: PathRecorder::default(), light_samples: Vec::new(), clock: GuideClock::default() }
+        Self {
+            path: PathRecorder::default(),
+            light_samples: Vec::new(),
+            roulette_vertices: Vec::new(),
+            clock: GuideClock::default(),
+        }
     }
+}
+
+/// A vertex as the efficiency-aware roulette learns from it once its path is done: what
+/// the path had gathered before the vertex's next-event estimation and after it, and
+/// the throughput that arrived there (luminance).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct RouletteVertex {
+    pub(super) cell: RouletteCell,
+    pub(super) throughput: f32,
+    pub(super) before_light_sample: f32,
+    pub(super) after_light_sample: f32,
+    /// The path's rays so far, at the roulette's decision here.
+    pub(super) rays: u64,
 }
 
 /// A light sample kept for learning at the end of its path.
@@ -125,6 +145,11 @@ pub struct PathTracer<'a, I: Intersector, G: Guide> {
     pub(super) gate: Option<&'a NextEventGate>,
     /// The learned environment sampling, when `settings.environment_sampling` is `Tiles`.
     pub(super) environment_guide: Option<&'a EnvTileGuide>,
+    /// The efficiency-aware roulette's learned cells, when `settings.roulette` is
+    /// `Efficiency`.
+    pub(super) roulette: Option<&'a EfficiencyRoulette>,
+    /// The image the roulette weighs paths against (its `pixel` set per path).
+    pub(super) roulette_image: RouletteImage,
     pub(super) settings: IntegratorSettings,
     /// The diagonal of the scene's bounds, scene units.
     pub(super) extent: f32,
@@ -211,6 +236,8 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             light_guide: None,
             gate: None,
             environment_guide: None,
+            roulette: None,
+            roulette_image: RouletteImage { pixel: 0.0, relative_variance: 0.0, path_cost: 0.0 },
             settings,
             extent,
             ray_epsilon,
@@ -286,6 +313,20 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
     /// The tracer with a next-event gate, for methods that estimate next-event light.
     pub fn with_gate(mut self, gate: Option<&'a NextEventGate>) -> Self {
         self.gate = gate;
+        self
+    }
+
+    /// The tracer with the efficiency-aware roulette's learned cells, the image's relative
+    /// variance per sample so far (mean over pixels of a sample's variance over the squared
+    /// pixel, as relMSE weighs it) and the rays a camera path cast on average.
+    pub fn with_roulette(
+        mut self,
+        roulette: Option<&'a EfficiencyRoulette>,
+        relative_variance: f32,
+        path_rays: f32,
+    ) -> Self {
+        self.roulette = roulette;
+        self.roulette_image = RouletteImage { pixel: 0.0, relative_variance, path_cost: path_rays };
         self
     }
 

@@ -174,6 +174,7 @@ pub fn prepare_with_lights(
             importance_guide: None,
             focal_guide: None,
             guide_shares: None,
+            roulette: None,
             focal_settings: FocalGuideSettings::default(),
             guide_share_cost: GUIDE_SHARE_COST,
             light_guide,

@@ -4,7 +4,7 @@
 
 mod build;
 
-use guiding_core::{EnvTileGuide, FocalGuide, LightGuide, NextEventGate, StrategyShares};
+use guiding_core::{EfficiencyRoulette, EnvTileGuide, FocalGuide, LightGuide, NextEventGate, StrategyShares};
 
 use crate::backend::{Backend, CpuBackend, Device};
 use crate::integrator::Method;
@@ -62,8 +62,8 @@ impl Session {
         }
     }
 
-    /// Bytes of every structure `method` learns with: the directional and focal guides
-    /// (guided methods), the light guide and the environment guide (as built by the plan).
+    /// Bytes of every structure `method` learns with: the directional and focal guides and
+    /// the learned roulette (guided methods), the light guide and the environment guide (as built by the plan).
     pub fn learned_bytes(&self, method: Method) -> usize {
         let learners = &self.learners;
         let guided = method.uses_guide();
@@ -73,7 +73,8 @@ impl Session {
             + learners.gate.as_ref().map_or(0, NextEventGate::memory_bytes);
         let environment = learners.environment_guide.as_ref().map_or(0, EnvTileGuide::memory_bytes);
         let focal = learners.focal_guide.as_ref().filter(|_| guided).map_or(0, FocalGuide::memory_bytes);
-        directions + focal + lights + environment
+        let roulette = learners.roulette.as_ref().filter(|_| guided).map_or(0, EfficiencyRoulette::memory_bytes);
+        directions + focal + lights + environment + roulette
     }
 
     /// Renders with the learners built (the directional guide only for guided

@@ -1,0 +1,291 @@
+//! Russian roulette that weighs what a path's continuation is worth against what it costs
+//! (efficiency-aware Russian roulette, Rath et al. 2022, without its splitting).
+//!
+//! Ending a path of throughput T at a vertex with probability 1 − q adds
+//! T²·M·(1/q − 1) to its pixel's variance, M the second moment of what the continuation
+//! brings per unit throughput, and saves (1 − q) times the continuation's cost C. Over an
+//! image whose relative variance per sample is v and whose paths cost C̄ each, the best q
+//! for relative error is T·√(M·C̄/C) / (I·√v), I the pixel. Where continuations are rare
+//! but bright (light through a gap) M is large against their mean, and paths go on where
+//! throughput-based roulette would end them; where they bring little and cost much, paths
+//! end early, whatever their throughput.
+//!
+//! Per cell of a coarse grid over the scene, and per side a surface faces there (the
+//! normal's largest axis and its sign: the two faces of a wall between a lit room and a
+//! dark one learn apart), it learns per unit throughput arriving at a vertex the radiance
+//! the path gathered from the vertex on without the vertex's emission (`outgoing`: a
+//! pixel estimate where the renderer has none), the square of the part its continuation
+//! brought (next-event estimation at the vertex left out), and the cost of going on.
+//! The survival reads only what the last [`rebuild_sampling`] made of them: learning
+//! during a pass changes nothing a path of that pass reads.
+//!
+//! [`rebuild_sampling`]: EfficiencyRoulette::rebuild_sampling
+
+use alloc::vec::Vec;
+use core::sync::atomic::AtomicU32;
+
+use glam::Vec3;
+
+use crate::atomic_f32;
+use crate::error::{require, Error};
+
+/// Samples a cell's side needs before its means decide anything.
+const MIN_SAMPLES: f32 = 16.0;
+
+/// The least survival probability the roulette gives: the means are learned from few,
+/// noisy paths, and one that underestimates what a continuation brings would otherwise
+/// give the rare survivor a weight without bound.
+pub const MIN_SURVIVAL: f32 = 0.05;
+
+/// The sides a cell tells apart: ±x, ±y, ±z.
+const SIDES: usize = 6;
+
+/// What a cell side learns: Σ outgoing, Σ continuation², the samples, Σ cost of the
+/// continuations that went on and their count.
+const SUMS: usize = 5;
+
+/// Per cell side of a grid over the scene, what paths passing there brought and cost,
+/// which sets their survival probability.
+#[derive(Debug)]
+pub struct EfficiencyRoulette {
+    cells: [u32; 3],
+    low: Vec3,
+    /// Cells per unit length.
+    cells_per_unit: f32,
+    /// Per cell side the sums learned so far (f32 bits, learning).
+    sums: Vec<[AtomicU32; SUMS]>,
+    /// Per cell side the means of the last rebuild (sampling): outgoing and the
+    /// continuation's second moment (negative where too few samples were learned), and
+    /// the cost of going on (0 where none was learned).
+    means: Vec<[f32; 3]>,
+}
+
+/// Where a vertex's samples go and its means come from: a cell side.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RouletteCell(u32);
+
+/// What the survival weighs a path against: its pixel and the image.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RouletteImage {
+    /// The pixel as the error weighs it (luminance; for relative error √(I² + ε)), > 0.
+    pub pixel: f32,
+    /// The image's relative variance per sample (mean over pixels of a sample's variance
+    /// over the squared pixel), > 0.
+    pub relative_variance: f32,
+    /// A path's mean cost, in the unit of the costs learned (e.g. rays), > 0; or 0 to
+    /// leave cost out.
+    pub path_cost: f32,
+}
+
+impl EfficiencyRoulette {
+    /// A grid over `low..high` with `resolution` (1..=128) cells along the longest side
+    /// and the other sides in proportion. Nothing is known until learned.
+    ///
+    /// ```
+    /// use guiding_core::{glam::Vec3, EfficiencyRoulette, RouletteImage};
+    /// let mut roulette = EfficiencyRoulette::new(Vec3::ZERO, Vec3::ONE, 8).unwrap();
+    /// let cell = roulette.locate(Vec3::splat(0.5), Vec3::Z).unwrap();
+    /// for _ in 0..32 {
+    ///     roulette.record(cell, 1.0, 0.5, Some(3.0));
+    /// }
+    /// roulette.rebuild_sampling();
+    /// let image = RouletteImage { pixel: 1.0, relative_variance: 4.0, path_cost: 3.0 };
+    /// // √(M = 0.25) / (1 · √4) = 0.25 at throughput 1.
+    /// assert!((roulette.survival(cell, 1.0, &image).unwrap() - 0.25).abs() < 1e-6);
+    /// ```
+    pub fn new(low: Vec3, high: Vec3, resolution: u32) -> Result<Self, Error> {
+        require((1..=128).contains(&resolution), "roulette_resolution", resolution as f64, "in 1..=128")?;
+        if !(low.is_finite() && high.is_finite() && high.cmpge(low).all()) {
+            return Err(Error::InvalidSetting {
+                name: "bounds",
+                value: f64::NAN,
+                requirement: "finite, with high ≥ low on every axis",
+            });
+        }
+        let extent = (high - low).max(Vec3::splat(1e-6));
+        let cell_size = extent.max_element() / resolution as f32;
+        let counts = (extent / cell_size).ceil().max(Vec3::ONE);
+        let cells = [counts.x as u32, counts.y as u32, counts.z as u32];
+        let count = cells.iter().product::<u32>() as usize * SIDES;
+        Ok(Self {
+            cells,
+            low,
+            cells_per_unit: 1.0 / cell_size,
+            sums: (0..count).map(|_| core::array::from_fn(|_| atomic_f32::new(0.0))).collect(),
+            means: alloc::vec![[-1.0, -1.0, 0.0]; count],
+        })
+    }
+
+    /// The cell side of a vertex at `point` whose surface faces `normal` (the side the
+    /// path arrived from; clamped into the grid); `None` for a non-finite point or normal.
+    #[inline]
+    pub fn locate(&self, point: Vec3, normal: Vec3) -> Option<RouletteCell> {
+        if !(point.is_finite() && normal.is_finite()) {
+            return None;
+        }
+        let local = ((point - self.low) * self.cells_per_unit).max(Vec3::ZERO);
+        let [nx, ny, nz] = self.cells;
+        let (x, y, z) = ((local.x as u32).min(nx - 1), (local.y as u32).min(ny - 1), (local.z as u32).min(nz - 1));
+        let a = normal.abs();
+        let axis = if a.x >= a.y && a.x >= a.z {
+            0
+        } else if a.y >= a.z {
+            1
+        } else {
+            2
+        };
+        let side = 2 * axis + u32::from(normal[axis as usize] < 0.0);
+        Some(RouletteCell((x + nx * (y + ny * z)) * SIDES as u32 + side))
+    }
+
+    /// The radiance a path's pixel is expected to get from a first vertex in `cell` that
+    /// showed the camera `emitted` (luminance): `None` where too little was learned there.
+    #[inline]
+    pub fn pixel_estimate(&self, cell: RouletteCell, emitted: f32) -> Option<f32> {
+        let outgoing = self.means[cell.0 as usize][0];
+        (outgoing >= 0.0).then_some(emitted + outgoing)
+    }
+
+    /// The probability with which a path of throughput `throughput` (luminance) at a
+    /// vertex in `cell` goes on: T·√(M·C̄/C) / (I·√v) (see the module), clamped to
+    /// [[`MIN_SURVIVAL`], 1]. `None` where too little was learned there or `image` holds
+    /// no usable pixel or variance (the renderer's own roulette decides).
+    #[inline]
+    pub fn survival(&self, cell: RouletteCell, throughput: f32, image: &RouletteImage) -> Option<f32> {
+        let [_, second_moment, cost] = self.means[cell.0 as usize];
+        let usable = image.pixel > 0.0 && image.relative_variance > 0.0 && image.relative_variance.is_finite();
+        if second_moment < 0.0 || !usable || !throughput.is_finite() {
+            return None;
+        }
+        let cost_ratio = if cost > 0.0 && image.path_cost > 0.0 { image.path_cost / cost } else { 1.0 };
+        let q =
+            throughput * libm::sqrtf(second_moment * cost_ratio) / (image.pixel * libm::sqrtf(image.relative_variance));
+        Some(if q.is_nan() { 1.0 } else { q.clamp(MIN_SURVIVAL, 1.0) })
+    }
+
+    /// Learns one vertex of a finished path in `cell`: the radiance it gathered from the
+    /// vertex on without the vertex's emission (`outgoing`) and the part its continuation
+    /// brought (`continuation`), each per unit throughput at the vertex (luminance, ≥ 0),
+    /// and, where the path went on past the vertex, what that cost (`cost`, > 0, in the
+    /// unit of [`RouletteImage::path_cost`]). Non-finite or negative values are not
+    /// learned. Lock-free; safe from many threads.
+    pub fn record(&self, cell: RouletteCell, outgoing: f32, continuation: f32, cost: Option<f32>) {
+        let valid = |v: f32| v.is_finite() && v >= 0.0;
+        if !(valid(outgoing) && valid(continuation)) {
+            return;
+        }
+        let Some(sums) = self.sums.get(cell.0 as usize) else { return };
+        atomic_f32::update(&sums[0], |s| (s + outgoing).min(f32::MAX));
+        atomic_f32::update(&sums[1], |s| (s + continuation * continuation).min(f32::MAX));
+        atomic_f32::update(&sums[2], |n| n + 1.0);
+        if let Some(cost) = cost.filter(|c| c.is_finite() && *c > 0.0) {
+            atomic_f32::update(&sums[3], |s| (s + cost).min(f32::MAX));
+            atomic_f32::update(&sums[4], |n| n + 1.0);
+        }
+    }
+
+    /// Makes what was learned so far the means the survival decides with. The means
+    /// estimate expectations that do not depend on how directions were drawn, so every
+    /// sample keeps counting.
+    pub fn rebuild_sampling(&mut self) {
+        for (means, sums) in self.means.iter_mut().zip(&self.sums) {
+            let n = atomic_f32::load(&sums[2]);
+            let (outgoing, second_moment) = if n >= MIN_SAMPLES {
+                (atomic_f32::load(&sums[0]) / n, atomic_f32::load(&sums[1]) / n)
+            } else {
+                (-1.0, -1.0)
+            };
+            let went_on = atomic_f32::load(&sums[4]);
+            let cost = if went_on > 0.0 { atomic_f32::load(&sums[3]) / went_on } else { 0.0 };
+            *means = [outgoing, second_moment, cost];
+        }
+    }
+
+    /// Cell sides whose means decide (since the last rebuild).
+    pub fn cells_known(&self) -> usize {
+        self.means.iter().filter(|m| m[0] >= 0.0).count()
+    }
+
+    /// Bytes held.
+    pub fn memory_bytes(&self) -> usize {
+        self.means.len() * (SUMS * 4 + 3 * 4)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn roulette() -> EfficiencyRoulette {
+        EfficiencyRoulette::new(Vec3::ZERO, Vec3::new(2.0, 1.0, 1.0), 2).unwrap()
+    }
+
+    const IMAGE: RouletteImage = RouletteImage { pixel: 2.0, relative_variance: 1.0, path_cost: 0.0 };
+
+    #[test]
+    fn nothing_decides_before_enough_samples_are_learned_and_rebuilt() {
+        let mut roulette = roulette();
+        let cell = roulette.locate(Vec3::splat(0.5), Vec3::Y).unwrap();
+        for _ in 0..15 {
+            roulette.record(cell, 2.0, 1.0, None);
+        }
+        roulette.rebuild_sampling();
+        assert_eq!(roulette.pixel_estimate(cell, 0.0), None);
+        assert_eq!(roulette.survival(cell, 1.0, &IMAGE), None);
+        roulette.record(cell, 2.0, 1.0, None);
+        assert_eq!(roulette.survival(cell, 1.0, &IMAGE), None, "learning alone changes nothing");
+        roulette.rebuild_sampling();
+        assert_eq!(roulette.pixel_estimate(cell, 0.5), Some(2.5));
+        assert_eq!(roulette.cells_known(), 1);
+    }
+
+    #[test]
+    fn survival_follows_the_root_of_the_second_moment_and_the_cost_ratio() {
+        let mut roulette = roulette();
+        let cell = roulette.locate(Vec3::splat(0.5), Vec3::Y).unwrap();
+        // Continuations of 0 and 2 in turn: mean 1, second moment 2.
+        for i in 0..20 {
+            roulette.record(cell, 4.0, if i % 2 == 0 { 0.0 } else { 2.0 }, Some(2.0));
+        }
+        roulette.rebuild_sampling();
+        let q = |throughput: f32, image: RouletteImage| roulette.survival(cell, throughput, &image);
+        let expected = 0.5 * 2f32.sqrt() / 2.0;
+        assert!((q(0.5, IMAGE).unwrap() - expected).abs() < 1e-6);
+        // A path costing 4× what going on from here costs: twice the survival.
+        let costly = RouletteImage { path_cost: 8.0, ..IMAGE };
+        assert!((q(0.5, costly).unwrap() - 2.0 * expected).abs() < 1e-6);
+        assert_eq!(q(10.0, IMAGE), Some(1.0));
+        assert_eq!(q(1e-6, IMAGE), Some(MIN_SURVIVAL));
+        assert_eq!(q(1.0, RouletteImage { pixel: 0.0, ..IMAGE }), None);
+        assert_eq!(q(1.0, RouletteImage { relative_variance: 0.0, ..IMAGE }), None);
+        assert_eq!(q(f32::NAN, IMAGE), None);
+    }
+
+    #[test]
+    fn the_two_faces_of_a_wall_learn_apart_and_bad_samples_are_left_out() {
+        let mut roulette = roulette();
+        let lit = roulette.locate(Vec3::splat(0.5), Vec3::X).unwrap();
+        let dark = roulette.locate(Vec3::splat(0.5), -Vec3::X).unwrap();
+        assert_ne!(lit, dark);
+        for _ in 0..20 {
+            roulette.record(lit, 8.0, 4.0, None);
+            roulette.record(dark, 0.5, 0.5, None);
+            roulette.record(dark, f32::NAN, 1.0, None);
+            roulette.record(dark, -1.0, 1.0, None);
+            roulette.record(dark, 0.5, f32::INFINITY, None);
+        }
+        roulette.rebuild_sampling();
+        assert_eq!(roulette.pixel_estimate(lit, 0.0), Some(8.0));
+        assert_eq!(roulette.pixel_estimate(dark, 0.0), Some(0.5));
+        assert_eq!(roulette.locate(Vec3::NAN, Vec3::X), None);
+        assert_eq!(roulette.locate(Vec3::ONE, Vec3::NAN), None);
+    }
+
+    #[test]
+    fn settings_out_of_range_are_named() {
+        let err = EfficiencyRoulette::new(Vec3::ZERO, Vec3::ONE, 0).unwrap_err();
+        assert!(alloc::format!("{err}").contains("roulette_resolution"));
+        let err = EfficiencyRoulette::new(Vec3::ONE, Vec3::ZERO, 8).unwrap_err();
+        assert!(alloc::format!("{err}").contains("bounds"));
+    }
+}
