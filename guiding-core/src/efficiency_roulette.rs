@@ -1,12 +1,13 @@
-//! Russian roulette that weighs what a path's continuation is worth against what it costs
-//! (efficiency-aware Russian roulette, Rath et al. 2022, without its splitting).
+//! Russian roulette and splitting that weigh what a path's continuation is worth against
+//! what it costs (efficiency-aware Russian roulette and splitting, Rath et al. 2022).
 //!
-//! Ending a path of throughput T at a vertex with probability 1 − q adds
-//! T²·M·(1/q − 1) to its pixel's variance, M the second moment of what the continuation
-//! brings per unit throughput, and saves (1 − q) times the continuation's cost C. Over an
-//! image whose relative variance per sample is v and whose paths cost C̄ each, the best q
-//! for relative error is T·√(M·C̄/C) / (I·√v), I the pixel. Where continuations are rare
-//! but bright (light through a gap) M is large against their mean, and paths go on where
+//! Giving a path of throughput T q continuations on average at a vertex (q < 1: Russian
+//! roulette; q > 1: splitting) changes its pixel's variance by about T²·M·(1/q − 1), M the
+//! second moment of what one continuation brings per unit throughput, and its cost by
+//! (q − 1) times the continuation's cost C. Over an image whose relative variance per
+//! sample is v and whose paths cost C̄ each, the best q for relative error is
+//! T·√(M·C̄/C) / (I·√v), I the pixel. Where continuations are rare but bright (light
+//! through a gap) M is large against their mean, and paths go on, or split, where
 //! throughput-based roulette would end them; where they bring little and cost much, paths
 //! end early, whatever their throughput.
 //!
@@ -16,7 +17,7 @@
 //! the path gathered from the vertex on without the vertex's emission (`outgoing`: a
 //! pixel estimate where the renderer has none), the square of the part its continuation
 //! brought (next-event estimation at the vertex left out), and the cost of going on.
-//! The survival reads only what the last [`rebuild_sampling`] made of them: learning
+//! The factor reads only what the last [`rebuild_sampling`] made of them: learning
 //! during a pass changes nothing a path of that pass reads.
 //!
 //! [`rebuild_sampling`]: EfficiencyRoulette::rebuild_sampling
@@ -37,6 +38,11 @@ const MIN_SAMPLES: f32 = 16.0;
 /// give the rare survivor a weight without bound.
 pub const MIN_SURVIVAL: f32 = 0.05;
 
+/// The most copies a path splits into at one vertex: a mean learned from few paths that
+/// overestimates what a continuation brings would otherwise multiply a path's cost
+/// without bound.
+pub const MAX_SPLIT: f32 = 4.0;
+
 /// The sides a cell tells apart: ±x, ±y, ±z.
 const SIDES: usize = 6;
 
@@ -45,7 +51,7 @@ const SIDES: usize = 6;
 const SUMS: usize = 5;
 
 /// Per cell side of a grid over the scene, what paths passing there brought and cost,
-/// which sets their survival probability.
+/// which sets how many continuations they get.
 #[derive(Debug)]
 pub struct EfficiencyRoulette {
     cells: [u32; 3],
@@ -64,7 +70,7 @@ pub struct EfficiencyRoulette {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct RouletteCell(u32);
 
-/// What the survival weighs a path against: its pixel and the image.
+/// What the continuations weigh a path against: its pixel and the image.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RouletteImage {
     /// The pixel as the error weighs it (luminance; for relative error √(I² + ε)), > 0.
@@ -91,7 +97,7 @@ impl EfficiencyRoulette {
     /// roulette.rebuild_sampling();
     /// let image = RouletteImage { pixel: 1.0, relative_variance: 4.0, path_cost: 3.0 };
     /// // √(M = 0.25) / (1 · √4) = 0.25 at throughput 1.
-    /// assert!((roulette.survival(cell, 1.0, &image).unwrap() - 0.25).abs() < 1e-6);
+    /// assert!((roulette.continuations(cell, 1.0, &image).unwrap() - 0.25).abs() < 1e-6);
     /// ```
     pub fn new(low: Vec3, high: Vec3, resolution: u32) -> Result<Self, Error> {
         require((1..=128).contains(&resolution), "roulette_resolution", resolution as f64, "in 1..=128")?;
@@ -146,12 +152,14 @@ impl EfficiencyRoulette {
         (outgoing >= 0.0).then_some(emitted + outgoing)
     }
 
-    /// The probability with which a path of throughput `throughput` (luminance) at a
-    /// vertex in `cell` goes on: T·√(M·C̄/C) / (I·√v) (see the module), clamped to
-    /// [[`MIN_SURVIVAL`], 1]. `None` where too little was learned there or `image` holds
-    /// no usable pixel or variance (the renderer's own roulette decides).
+    /// How many continuations a path of throughput `throughput` (luminance) at a vertex
+    /// in `cell` should have on average: T·√(M·C̄/C) / (I·√v) (see the module), clamped
+    /// to [[`MIN_SURVIVAL`], [`MAX_SPLIT`]]. Below 1 it is the survival probability of
+    /// Russian roulette; above 1 the path splits into that many copies on average (a
+    /// renderer that does not split takes 1). `None` where too little was learned there
+    /// or `image` holds no usable pixel or variance (the renderer's own roulette decides).
     #[inline]
-    pub fn survival(&self, cell: RouletteCell, throughput: f32, image: &RouletteImage) -> Option<f32> {
+    pub fn continuations(&self, cell: RouletteCell, throughput: f32, image: &RouletteImage) -> Option<f32> {
         let [_, second_moment, cost] = self.means[cell.0 as usize];
         let usable = image.pixel > 0.0 && image.relative_variance > 0.0 && image.relative_variance.is_finite();
         if second_moment < 0.0 || !usable || !throughput.is_finite() {
@@ -160,7 +168,7 @@ impl EfficiencyRoulette {
         let cost_ratio = if cost > 0.0 && image.path_cost > 0.0 { image.path_cost / cost } else { 1.0 };
         let q =
             throughput * libm::sqrtf(second_moment * cost_ratio) / (image.pixel * libm::sqrtf(image.relative_variance));
-        Some(if q.is_nan() { 1.0 } else { q.clamp(MIN_SURVIVAL, 1.0) })
+        Some(if q.is_nan() { 1.0 } else { q.clamp(MIN_SURVIVAL, MAX_SPLIT) })
     }
 
     /// Learns one vertex of a finished path in `cell`: the radiance it gathered from the
@@ -184,7 +192,7 @@ impl EfficiencyRoulette {
         }
     }
 
-    /// Makes what was learned so far the means the survival decides with. The means
+    /// Makes what was learned so far the means the continuations are decided with. The means
     /// estimate expectations that do not depend on how directions were drawn, so every
     /// sample keeps counting.
     pub fn rebuild_sampling(&mut self) {
@@ -231,16 +239,16 @@ mod tests {
         }
         roulette.rebuild_sampling();
         assert_eq!(roulette.pixel_estimate(cell, 0.0), None);
-        assert_eq!(roulette.survival(cell, 1.0, &IMAGE), None);
+        assert_eq!(roulette.continuations(cell, 1.0, &IMAGE), None);
         roulette.record(cell, 2.0, 1.0, None);
-        assert_eq!(roulette.survival(cell, 1.0, &IMAGE), None, "learning alone changes nothing");
+        assert_eq!(roulette.continuations(cell, 1.0, &IMAGE), None, "learning alone changes nothing");
         roulette.rebuild_sampling();
         assert_eq!(roulette.pixel_estimate(cell, 0.5), Some(2.5));
         assert_eq!(roulette.cells_known(), 1);
     }
 
     #[test]
-    fn survival_follows_the_root_of_the_second_moment_and_the_cost_ratio() {
+    fn continuations_follow_the_root_of_the_second_moment_and_the_cost_ratio() {
         let mut roulette = roulette();
         let cell = roulette.locate(Vec3::splat(0.5), Vec3::Y).unwrap();
         // Continuations of 0 and 2 in turn: mean 1, second moment 2.
@@ -248,13 +256,14 @@ mod tests {
             roulette.record(cell, 4.0, if i % 2 == 0 { 0.0 } else { 2.0 }, Some(2.0));
         }
         roulette.rebuild_sampling();
-        let q = |throughput: f32, image: RouletteImage| roulette.survival(cell, throughput, &image);
+        let q = |throughput: f32, image: RouletteImage| roulette.continuations(cell, throughput, &image);
         let expected = 0.5 * 2f32.sqrt() / 2.0;
         assert!((q(0.5, IMAGE).unwrap() - expected).abs() < 1e-6);
-        // A path costing 4× what going on from here costs: twice the survival.
+        // A path costing 4× what going on from here costs: twice the continuations.
         let costly = RouletteImage { path_cost: 8.0, ..IMAGE };
         assert!((q(0.5, costly).unwrap() - 2.0 * expected).abs() < 1e-6);
-        assert_eq!(q(10.0, IMAGE), Some(1.0));
+        assert_eq!(q(2.0, IMAGE), Some(2.0 * 2f32.sqrt() / 2.0));
+        assert_eq!(q(100.0, IMAGE), Some(MAX_SPLIT));
         assert_eq!(q(1e-6, IMAGE), Some(MIN_SURVIVAL));
         assert_eq!(q(1.0, RouletteImage { pixel: 0.0, ..IMAGE }), None);
         assert_eq!(q(1.0, RouletteImage { relative_variance: 0.0, ..IMAGE }), None);

@@ -418,25 +418,29 @@ fn assert_split_lights_agree(scene: &std::path::Path, spp: u32, reference_spp: u
 }
 
 /// The efficiency-aware roulette (learned in the training passes, deciding in the frozen
-/// ones, from the first vertex on) beside the focal guide: guided-nee's mean is nee's,
-/// and the roulette learned cells to decide with.
+/// ones, from the first vertex on), without and with splitting, beside the focal guide:
+/// guided-nee's mean is nee's, and the roulette learned cells to decide with.
 fn assert_efficiency_roulette_agrees(scene: &std::path::Path, spp: u32, reference_spp: u32) {
     let reference = mean_estimate(&render_scene(scene, settings(Method::Nee), None, reference_spp, 17));
-    let integrator = reference_tracer::integrator::IntegratorSettings {
-        focal_probability: 0.5,
-        focal_learning_share: 1.0,
-        guide_probability: 0.0,
-        roulette: Roulette::Efficiency { cells: 8 },
-        ..settings(Method::GuidedNee)
-    };
-    let lights = LightRequest::new(Some(integrator.light_selection), Some(integrator.environment_sampling), true);
-    let mut session = prepare_with_lights(scene, IntersectorChoice::default(), None, lights).unwrap();
-    let render = support::render_settings(integrator, spp, 48, Schedule::Iterative);
-    let (_, statistics) = session.render(&render, |_| {}).unwrap();
-    let roulette = session.learners.roulette.as_ref().expect("the roulette was built");
-    assert!(roulette.cells_known() > 0, "the roulette learned no cell");
-    assert!(statistics.training_passes < spp, "no frozen pass: the roulette never decided");
-    support::assert_agree("guided-nee under the efficiency roulette vs nee", &mean_estimate(&statistics), &reference);
+    for (splitting, seed) in [(false, 48), (true, 49)] {
+        let integrator = reference_tracer::integrator::IntegratorSettings {
+            focal_probability: 0.5,
+            focal_learning_share: 1.0,
+            guide_probability: 0.0,
+            roulette: Roulette::Efficiency { cells: 8 },
+            splitting,
+            ..settings(Method::GuidedNee)
+        };
+        let lights = LightRequest::new(Some(integrator.light_selection), Some(integrator.environment_sampling), true);
+        let mut session = prepare_with_lights(scene, IntersectorChoice::default(), None, lights).unwrap();
+        let render = support::render_settings(integrator, spp, seed, Schedule::Iterative);
+        let (_, statistics) = session.render(&render, |_| {}).unwrap();
+        let roulette = session.learners.roulette.as_ref().expect("the roulette was built");
+        assert!(roulette.cells_known() > 0, "the roulette learned no cell");
+        assert!(statistics.training_passes < spp, "no frozen pass: the roulette never decided");
+        let label = format!("guided-nee under the efficiency roulette (splitting {splitting}) vs nee");
+        support::assert_agree(&label, &mean_estimate(&statistics), &reference);
+    }
 }
 
 #[test]

@@ -304,10 +304,21 @@ pub struct TraceOptions {
     /// --rr-depth by the path's throughput) or efficiency (learned in the training passes
     /// per cell side: in the frozen passes every vertex weighs what its continuation's
     /// light varies by against what going on costs and the image's variance; Rath et al.
-    /// 2022, without splitting). Unguided methods, and learning passes, always use
-    /// throughput. Default efficiency for guided-nee on the CPU, else throughput.
+    /// 2022). Unguided methods, learning passes and the GPU tracer always use throughput. Default
+    /// efficiency for guided-nee and guided on the CPU, else throughput: relMSE
+    /// efficiency ÷ throughput, seed 41, guided-nee at 30 s door 160×120 0.63, cornell 128²
+    /// 0.97, at 60 s Veach Ajar 0.85, living room 0.76; guided at 30 s door 0.25, cornell
+    /// 0.54.
     #[arg(long, value_parser = parse_roulette_kind)]
     pub(super) roulette: Option<RouletteKind>,
+    /// --roulette efficiency: whether a path whose continuation is worth more than it
+    /// costs splits (into up to 4 copies at a vertex, 16 a path), or only goes on (on,
+    /// off). Default off: guided-nee at 30 s, seed 41, on ÷ off, door 160×120 relMSE 1.62
+    /// (per sample 0.76, its paths 2.2× as long), cornell 128² 1.27 (per sample 0.53,
+    /// 2.8× as long): the costs it learns in the training passes, which do not split,
+    /// leave out what splitting adds, and it splits too often.
+    #[arg(long, value_parser = parse_switch)]
+    pub(super) splitting: Option<bool>,
     /// --roulette efficiency: cells along the scene's longest side, 1..=128.
     #[arg(long, default_value_t = 32)]
     pub(super) roulette_cells: u32,

@@ -162,12 +162,12 @@ impl TraceOptions {
         }
     }
 
-    /// `--roulette`, else efficiency for guided-nee on the CPU (the GPU tracer has no
-    /// learned roulette) and throughput for every other method.
+    /// `--roulette`, else efficiency for guided-nee and guided on the CPU (the GPU tracer
+    /// has no learned roulette) and throughput for every other method.
     pub(super) fn roulette(&self, method: Method) -> RouletteKind {
         match (self.roulette, self.device, method) {
             (Some(kind), _, _) => kind,
-            (None, Device::Cpu, Method::GuidedNee) => RouletteKind::Efficiency,
+            (None, Device::Cpu, Method::GuidedNee | Method::Guided) => RouletteKind::Efficiency,
             (None, _, _) => RouletteKind::Throughput,
         }
     }
@@ -259,6 +259,7 @@ impl TraceOptions {
                 }
                 _ => Roulette::Throughput,
             },
+            splitting: self.splitting.unwrap_or(false),
         }
     }
 

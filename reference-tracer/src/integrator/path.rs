@@ -9,13 +9,17 @@ use guiding_core::{
 
 use super::counters::{PathCounters, TIMED_PATH_STRIDE};
 use super::tracer::{
-    nee_partner_pdf, GuideClock, LearnedLightSample, NeeCells, PathScratch, PathTracer, RouletteVertex, ScalarBsdf,
-    SurfaceInteraction, VertexStrategies,
+    nee_partner_pdf, Branch, GuideClock, LearnedLightSample, NeeCells, PathScratch, PathTracer, RouletteVertex,
+    ScalarBsdf, SurfaceInteraction, VertexStrategies,
 };
 use crate::color::luminance;
 use crate::material::{Material, ShadingFrame, Surface};
 use crate::metrics::RELATIVE_EPSILON;
 use crate::sampling::power_heuristic;
+
+/// The most copies one camera path adds by splitting: each costs a ray to re-enter its
+/// vertex and a continuation, and a path of many splits would hold up its pass.
+const MAX_COPIES: u32 = 16;
 
 impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
     /// Radiance arriving along `ray` (one sample), adding its counters to `counters`.
@@ -63,20 +67,53 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         // that direction came from a delta lobe, and its light guide cell.
         let mut previous: Option<(Vec3, f32, bool, NeeCells)> = None;
         counters.paths += 1;
-        for depth in 0..settings.max_depth {
-            counters.rays += 1;
-            let next = self.next_surface(ray, rng, counters);
-            if let Some((hit, _)) = &next {
-                scratch.path.reached(hit.t);
-            }
-            let Some((hit, material)) = next else {
-                if let Some(environment) = &self.scene.environment {
-                    let emitted = environment.radiance(ray.direction);
+        // Copies of a split path waiting to be traced: each re-enters the vertex it split
+        // at by that vertex's incoming ray, and goes on from there without the vertex's
+        // emission and light sample (the path counted them once, whole).
+        scratch.branches.clear();
+        let (mut first_depth, mut reentry, mut copies_made) = (0, false, 0);
+        loop {
+            for depth in first_depth..settings.max_depth {
+                let reentering = reentry && depth == first_depth;
+                counters.rays += 1;
+                let next = self.next_surface(ray, rng, counters);
+                if let Some((hit, _)) = &next {
+                    scratch.path.reached(hit.t);
+                }
+                let Some((hit, material)) = next else {
+                    if let (false, Some(environment)) = (reentering, &self.scene.environment) {
+                        let emitted = environment.radiance(ray.direction);
+                        let light_pdf = match previous {
+                            Some((from, _, false, cells)) if nee => {
+                                self.next_event_probability(cells.gate)
+                                    * self.environment_choice
+                                    * self.environment_pdf(environment, from, ray.direction)
+                            }
+                            _ => 0.0,
+                        };
+                        let weight = match previous {
+                            Some((_, pdf, false, _)) if nee => power_heuristic(pdf, light_pdf),
+                            _ => 1.0,
+                        };
+                        radiance += throughput * emitted * weight;
+                        scratch.path.arrive(weight * luminance(emitted));
+                        if kickstart {
+                            scratch.path.arrive_learned_only((1.0 - weight) * luminance(emitted));
+                            scratch.path.add_density(light_pdf);
+                        }
+                    }
+                    break;
+                };
+                counters.vertices += 1;
+                let surface = self.interaction(&hit, material, ray.direction);
+                let SurfaceInteraction { point, geometric_normal, wo, ref material, ref shading } = surface;
+
+                // Emission from the front face.
+                if !reentering && material.is_emissive() && geometric_normal.dot(wo) > 0.0 {
                     let light_pdf = match previous {
                         Some((from, _, false, cells)) if nee => {
                             self.next_event_probability(cells.gate)
-                                * self.environment_choice
-                                * self.environment_pdf(environment, from, ray.direction)
+                                * self.light_pdf(&hit, from, cells.light, point, geometric_normal)
                         }
                         _ => 0.0,
                     };
@@ -84,280 +121,277 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                         Some((_, pdf, false, _)) if nee => power_heuristic(pdf, light_pdf),
                         _ => 1.0,
                     };
-                    radiance += throughput * emitted * weight;
-                    scratch.path.arrive(weight * luminance(emitted));
+                    radiance += throughput * material.emission * weight;
+                    scratch.path.arrive(weight * luminance(material.emission));
                     if kickstart {
-                        scratch.path.arrive_learned_only((1.0 - weight) * luminance(emitted));
+                        // The guide learns the emission whole, this direction weighed by the
+                        // density of both strategies that find it (the light samples too).
+                        scratch.path.arrive_learned_only((1.0 - weight) * luminance(material.emission));
                         scratch.path.add_density(light_pdf);
                     }
                 }
-                break;
-            };
-            counters.vertices += 1;
-            let surface = self.interaction(&hit, material, ray.direction);
-            let SurfaceInteraction { point, geometric_normal, wo, ref material, ref shading } = surface;
-
-            // Emission from the front face.
-            if material.is_emissive() && geometric_normal.dot(wo) > 0.0 {
-                let light_pdf = match previous {
-                    Some((from, _, false, cells)) if nee => {
-                        self.next_event_probability(cells.gate)
-                            * self.light_pdf(&hit, from, cells.light, point, geometric_normal)
+                // The roulette's cell side: the face the path arrived at.
+                let roulette_cell = self.roulette.and_then(|roulette| {
+                    let facing = if geometric_normal.dot(wo) >= 0.0 { geometric_normal } else { -geometric_normal };
+                    roulette.locate(point, facing)
+                });
+                if let (0, None, Some(roulette), Some(cell)) = (depth, pixel_estimate, self.roulette, roulette_cell) {
+                    pixel_estimate = roulette.pixel_estimate(cell, luminance(radiance));
+                }
+                let before_light_sample = luminance(radiance);
+                let normal = shading.frame.normal;
+                let delta = material.is_delta();
+                // The guide's share here: fixed, or learned per region (where it learned 0 the
+                // guide is not even located, except to keep learning).
+                let guides_here = self.guide.is_some() && !delta && depth < settings.guide_depth;
+                // The guides take over only the part of the BSDF's sampling that spreads
+                // light (its diffuse lobes): a coat's highlight stays as likely as the BSDF
+                // alone makes it, so guiding does not double the weight of the sharp
+                // reflections of bright light it was never meant to find.
+                // Unguided paths skip it: their shares are 0 whatever it is.
+                let guided = self.guide.is_some() || self.focal.is_some();
+                let guidable = if settings.guide_diffuse_lobes && guided {
+                    material.guidable_share(shading, wo, settings.guide_min_alpha)
+                } else {
+                    1.0
+                };
+                let guide_share = guidable
+                    * match self.guide_shares {
+                        _ if !guides_here => 0.0,
+                        // Frozen, and no region gives it a share: no lookup at all.
+                        Some(shares) if !learning && !shares.any() => 0.0,
+                        Some(shares) => shares.share(point).min(settings.guide_probability),
+                        None => settings.guide_probability,
+                    };
+                let region = match self.guide {
+                    Some(guide) if guides_here && (guide_share > 0.0 || learning) => {
+                        clock.time(|| guide.locate(point, normal))
                     }
-                    _ => 0.0,
+                    _ => None,
                 };
-                let weight = match previous {
-                    Some((_, pdf, false, _)) if nee => power_heuristic(pdf, light_pdf),
-                    _ => 1.0,
-                };
-                radiance += throughput * material.emission * weight;
-                scratch.path.arrive(weight * luminance(material.emission));
-                if kickstart {
-                    // The guide learns the emission whole, this direction weighed by the
-                    // density of both strategies that find it (the light samples too).
-                    scratch.path.arrive_learned_only((1.0 - weight) * luminance(material.emission));
-                    scratch.path.add_density(light_pdf);
+                if learning && !delta && !self.carries_path {
+                    if let (false, Some(region), Some(guide)) = (scratch.path.is_empty(), region, self.guide) {
+                        let (u, u_lobe) = (rng.next_vec2(), rng.next_f32());
+                        let estimate = clock.time(|| match material.surface {
+                            Surface::Diffuse { albedo } => guide.estimate_integral(
+                                region,
+                                wo,
+                                &Lambertian { normal, albedo: luminance(albedo) },
+                                u,
+                            ),
+                            _ => {
+                                let bsdf = ScalarBsdf { material, shading, u_lobe };
+                                guide.estimate_integral(region, wo, &bsdf, u)
+                            }
+                        });
+                        scratch.path.estimate(estimate);
+                    }
                 }
-            }
-            // The roulette's cell side: the face the path arrived at.
-            let roulette_cell = self.roulette.and_then(|roulette| {
-                let facing = if geometric_normal.dot(wo) >= 0.0 { geometric_normal } else { -geometric_normal };
-                roulette.locate(point, facing)
-            });
-            if let (0, None, Some(roulette), Some(cell)) = (depth, pixel_estimate, self.roulette, roulette_cell) {
-                pixel_estimate = roulette.pixel_estimate(cell, luminance(radiance));
-            }
-            let before_light_sample = luminance(radiance);
-            let normal = shading.frame.normal;
-            let delta = material.is_delta();
-            // The guide's share here: fixed, or learned per region (where it learned 0 the
-            // guide is not even located, except to keep learning).
-            let guides_here = self.guide.is_some() && !delta && depth < settings.guide_depth;
-            // The guides take over only the part of the BSDF's sampling that spreads
-            // light (its diffuse lobes): a coat's highlight stays as likely as the BSDF
-            // alone makes it, so guiding does not double the weight of the sharp
-            // reflections of bright light it was never meant to find.
-            // Unguided paths skip it: their shares are 0 whatever it is.
-            let guided = self.guide.is_some() || self.focal.is_some();
-            let guidable = if settings.guide_diffuse_lobes && guided {
-                material.guidable_share(shading, wo, settings.guide_min_alpha)
-            } else {
-                1.0
-            };
-            let guide_share = guidable
-                * match self.guide_shares {
-                    _ if !guides_here => 0.0,
-                    // Frozen, and no region gives it a share: no lookup at all.
-                    Some(shares) if !learning && !shares.any() => 0.0,
-                    Some(shares) => shares.share(point).min(settings.guide_probability),
-                    None => settings.guide_probability,
-                };
-            let region = match self.guide {
-                Some(guide) if guides_here && (guide_share > 0.0 || learning) => {
-                    clock.time(|| guide.locate(point, normal))
+                if depth + 1 >= settings.max_depth {
+                    break;
                 }
-                _ => None,
-            };
-            if learning && !delta && !self.carries_path {
-                if let (false, Some(region), Some(guide)) = (scratch.path.is_empty(), region, self.guide) {
-                    let (u, u_lobe) = (rng.next_vec2(), rng.next_f32());
-                    let estimate = clock.time(|| match material.surface {
-                        Surface::Diffuse { albedo } => {
-                            guide.estimate_integral(region, wo, &Lambertian { normal, albedo: luminance(albedo) }, u)
+
+                // The region's distribution, located once and used for every sample and pdf.
+                let distribution = match (self.guide, region) {
+                    (Some(guide), Some(region)) => Some(clock.time(|| guide.distribution(region))),
+                    _ => None,
+                };
+                // The focal guide's share of the scattering here (0 where it has no boxes, and
+                // left out altogether in frozen passes where no region aims at them).
+                let focal = self.focal.filter(|f| !delta && if learning { !f.boxes().is_empty() } else { f.aims() });
+                let focal_share =
+                    guidable * focal.map_or(0.0, |f| f.selection_probability(point).min(settings.focal_probability));
+                // Learning measures the boxes' share from every direction, sampled by them or not.
+                let focal = focal.filter(|_| focal_share > 0.0 || learning);
+                // Next-event estimation, and the cells it and the MIS weight of emission found
+                // from here share.
+                let nee_cells = if nee && !delta {
+                    NeeCells {
+                        light: self.light_guide.and_then(|guide| guide.locate(point)),
+                        gate: self.gate.and_then(|gate| gate.locate(point)),
+                    }
+                } else {
+                    NeeCells::default()
+                };
+                if nee && !delta && !reentering {
+                    let direct = self.direct_light(
+                        &surface,
+                        nee_cells,
+                        (distribution.as_ref(), guide_share, focal_share),
+                        rng,
+                        clock,
+                        counters,
+                    );
+                    radiance += throughput * direct.radiance;
+                    // A guide learning the full incident radiance has this light in its own
+                    // ∫ Q fs cos already: the predecessor's estimate must not count it twice.
+                    if !(kickstart && scratch.path.last_is_estimated()) {
+                        scratch.path.arrive(luminance(direct.radiance));
+                    }
+                    if let (Some(mut record), Some(region)) = (direct.sample, region) {
+                        if let Some(focal) = focal.filter(|_| focal_share > 0.0) {
+                            record.scatter_pdf += focal_share * clock.time(|| focal.pdf(point, record.direction));
+                        }
+                        scratch.light_samples.push(LearnedLightSample { region, record });
+                    }
+                }
+
+                if let (true, Some(cell)) = (roulette_learns, roulette_cell) {
+                    scratch.roulette_vertices.push(RouletteVertex {
+                        cell,
+                        throughput: luminance(throughput),
+                        before_light_sample,
+                        after_light_sample: luminance(radiance),
+                        rays: counters.rays,
+                    });
+                }
+
+                // Russian roulette, decided before the direction is drawn: a survival that
+                // depended on the direction (through its fs·cos/pdf) would make the traced
+                // directions, which are all the guide learns from, follow p·survival instead
+                // of the p they are recorded with. Efficiency-aware where it has learned the
+                // cell: at any depth, by what going on is worth against what it costs.
+                // A copy re-entering its vertex goes on: the path decided there once for all.
+                let learned = match (self.roulette.filter(|_| roulette_decides), roulette_cell, pixel_estimate) {
+                    (Some(roulette), Some(cell), Some(pixel)) if !reentering => {
+                        // The pixel as relMSE weighs it: √(I² + ε).
+                        let image =
+                            RouletteImage { pixel: (pixel * pixel + RELATIVE_EPSILON).sqrt(), ..self.roulette_image };
+                        roulette.continuations(cell, luminance(throughput), &image)
+                    }
+                    _ => None,
+                };
+                let plays = !reentering && learned.map_or(depth + 1 >= settings.rr_depth, |q| q < 1.0);
+                let mut survival = 1.0;
+                if plays {
+                    survival = learned.unwrap_or_else(|| roulette_throughput.max_element().min(0.95));
+                    if survival <= 0.0 || rng.next_f32() >= survival {
+                        break;
+                    }
+                    throughput /= survival;
+                    roulette_throughput /= survival;
+                } else if let Some(q) = learned.filter(|&q| q > 1.0 && settings.splitting) {
+                    // Splitting: ⌊q + u⌋ copies (q on average, at most MAX_COPIES a path), each
+                    // carrying its share of the weight; this path is the first of them.
+                    let copies = ((q + rng.next_f32()) as u32).min(MAX_COPIES - copies_made + 1).max(1);
+                    if copies > 1 {
+                        throughput /= copies as f32;
+                        roulette_throughput /= copies as f32;
+                        for _ in 1..copies {
+                            scratch.branches.push(Branch { ray, throughput, roulette_throughput, depth });
+                        }
+                        copies_made += copies - 1;
+                    }
+                }
+
+                // Choose the next direction: the guide with probability p_guide where a region
+                // exists, the BSDF otherwise; weight by the mixture pdf.
+                let (u_choice, u_lobe, u) = (rng.next_f32(), rng.next_f32(), rng.next_vec2());
+                // `mis_pdf` is what MIS with next-event estimation weighs by: the mixture
+                // without the focal term, or the BSDF's share alone (`nee_partner_pdf`); any
+                // function both strategies share keeps the weights summing to one, and these
+                // spare a focal (and a guide) pdf per light sample.
+                let (mut focal_arrival, mut focal_pdf_pending, mut guide_arrival) = (None, false, None);
+                let (wi, factor, bsdf_factor, pdf, mis_pdf, sampled_delta) = if delta {
+                    let Some(s) = material.sample(shading, wo, u, u_lobe) else { break };
+                    (s.wi, s.weight, s.weight, s.pdf, s.pdf, true)
+                } else {
+                    let guide_probability = if distribution.is_some() { guide_share } else { 0.0 };
+                    // A direction drawn from a guide comes with that guide's pdf: not evaluated twice.
+                    let (wi, f, guide_pdf, focal_pdf) = match (&distribution, focal) {
+                        (_, Some(focal)) if u_choice < focal_share && focal_share > 0.0 => {
+                            let u_point = Vec3::new(u_choice / focal_share, u.x, u.y);
+                            let Some(s) = clock.time(|| focal.sample(point, u_lobe, u_point)) else { break };
+                            (s.direction, material.eval(shading, wo, s.direction), None, Some(s.pdf))
+                        }
+                        (Some(distribution), _) if u_choice < focal_share + guide_probability => {
+                            let s = clock.time(|| distribution.sample(u));
+                            (s.direction, material.eval(shading, wo, s.direction), Some(s.pdf), None)
                         }
                         _ => {
-                            let bsdf = ScalarBsdf { material, shading, u_lobe };
-                            guide.estimate_integral(region, wo, &bsdf, u)
+                            let Some(s) = material.sample(shading, wo, u, u_lobe) else { break };
+                            (s.wi, s.weight * s.pdf, None, None)
                         }
-                    });
-                    scratch.path.estimate(estimate);
-                }
-            }
-            if depth + 1 >= settings.max_depth {
-                break;
-            }
-
-            // The region's distribution, located once and used for every sample and pdf.
-            let distribution = match (self.guide, region) {
-                (Some(guide), Some(region)) => Some(clock.time(|| guide.distribution(region))),
-                _ => None,
-            };
-            // The focal guide's share of the scattering here (0 where it has no boxes, and
-            // left out altogether in frozen passes where no region aims at them).
-            let focal = self.focal.filter(|f| !delta && if learning { !f.boxes().is_empty() } else { f.aims() });
-            let focal_share =
-                guidable * focal.map_or(0.0, |f| f.selection_probability(point).min(settings.focal_probability));
-            // Learning measures the boxes' share from every direction, sampled by them or not.
-            let focal = focal.filter(|_| focal_share > 0.0 || learning);
-            // Next-event estimation, and the cells it and the MIS weight of emission found
-            // from here share.
-            let nee_cells = if nee && !delta {
-                NeeCells {
-                    light: self.light_guide.and_then(|guide| guide.locate(point)),
-                    gate: self.gate.and_then(|gate| gate.locate(point)),
-                }
-            } else {
-                NeeCells::default()
-            };
-            if nee && !delta {
-                let direct = self.direct_light(
-                    &surface,
-                    nee_cells,
-                    (distribution.as_ref(), guide_share, focal_share),
-                    rng,
-                    clock,
-                    counters,
-                );
-                radiance += throughput * direct.radiance;
-                // A guide learning the full incident radiance has this light in its own
-                // ∫ Q fs cos already: the predecessor's estimate must not count it twice.
-                if !(kickstart && scratch.path.last_is_estimated()) {
-                    scratch.path.arrive(luminance(direct.radiance));
-                }
-                if let (Some(mut record), Some(region)) = (direct.sample, region) {
-                    if let Some(focal) = focal.filter(|_| focal_share > 0.0) {
-                        record.scatter_pdf += focal_share * clock.time(|| focal.pdf(point, record.direction));
+                    };
+                    if f == Vec3::ZERO {
+                        break;
                     }
-                    scratch.light_samples.push(LearnedLightSample { region, record });
-                }
-            }
-
-            if let (true, Some(cell)) = (roulette_learns, roulette_cell) {
-                scratch.roulette_vertices.push(RouletteVertex {
-                    cell,
-                    throughput: luminance(throughput),
-                    before_light_sample,
-                    after_light_sample: luminance(radiance),
-                    rays: counters.rays,
-                });
-            }
-
-            // Russian roulette, decided before the direction is drawn: a survival that
-            // depended on the direction (through its fs·cos/pdf) would make the traced
-            // directions, which are all the guide learns from, follow p·survival instead
-            // of the p they are recorded with. Efficiency-aware where it has learned the
-            // cell: at any depth, by what going on is worth against what it costs.
-            let learned = match (self.roulette.filter(|_| roulette_decides), roulette_cell, pixel_estimate) {
-                (Some(roulette), Some(cell), Some(pixel)) => {
-                    // The pixel as relMSE weighs it: √(I² + ε).
-                    let image =
-                        RouletteImage { pixel: (pixel * pixel + RELATIVE_EPSILON).sqrt(), ..self.roulette_image };
-                    roulette.survival(cell, luminance(throughput), &image)
-                }
-                _ => None,
-            };
-            let plays = learned.map_or(depth + 1 >= settings.rr_depth, |q| q < 1.0);
-            let mut survival = 1.0;
-            if plays {
-                survival = learned.unwrap_or_else(|| roulette_throughput.max_element().min(0.95));
-                if survival <= 0.0 || rng.next_f32() >= survival {
+                    let guide_pdf = match (&distribution, guide_pdf) {
+                        (Some(distribution), None) => Some(clock.time(|| distribution.pdf(wi))),
+                        (_, known) => known,
+                    };
+                    let focal_pdf = match (focal, focal_pdf) {
+                        (Some(focal), None) if focal_share > 0.0 => Some(clock.time(|| focal.pdf(point, wi))),
+                        (_, known) => known,
+                    };
+                    focal_pdf_pending = focal.is_some() && focal_pdf.is_none();
+                    let focal_pdf = focal_pdf.unwrap_or(0.0);
+                    let bsdf_pdf = material.pdf(shading, wo, wi);
+                    let mixture = self.mix_pdf(bsdf_pdf, guide_pdf.map(|g| (g, guide_share)), focal_share);
+                    let pdf = mixture + focal_share * focal_pdf;
+                    let mis_pdf = if settings.nee_weighs_guide {
+                        mixture
+                    } else {
+                        nee_partner_pdf(bsdf_pdf, guide_probability, focal_share)
+                    };
+                    if !(pdf.is_finite() && pdf > 0.0) {
+                        break;
+                    }
+                    if let (Some(_), Some(strategy_pdf)) = (self.guide_shares, guide_pdf) {
+                        // As for the focal arrival, the integrand waits for what arrives.
+                        let integrand = luminance(f);
+                        let selection = guide_share;
+                        guide_arrival =
+                            Some(StrategyArrival { point, integrand, pdf, strategy_pdf, bsdf_pdf, selection });
+                    }
+                    if focal.is_some() {
+                        // The integrand is filled in once the path knows what arrived.
+                        let integrand = luminance(f);
+                        let selection = focal_share;
+                        focal_arrival =
+                            Some(FocalArrival { point, direction: wi, integrand, pdf, focal_pdf, bsdf_pdf, selection });
+                    }
+                    // Where the mixture cannot aim at the focal boxes the two factors are one:
+                    // unguided and directionally guided paths survive as they always did (the
+                    // BSDF-only rule was measured for focal guiding alone, and the GPU tracer,
+                    // which has no focal guide, keeps the same rule).
+                    let aims = focal_share > 0.0;
+                    let bsdf_factor = if aims && bsdf_pdf > 0.0 { f / bsdf_pdf } else { f / pdf };
+                    (wi, f / pdf, bsdf_factor, pdf, mis_pdf, false)
+                };
+                if !factor.is_finite() {
                     break;
                 }
-                throughput /= survival;
-                roulette_throughput /= survival;
-            }
-
-            // Choose the next direction: the guide with probability p_guide where a region
-            // exists, the BSDF otherwise; weight by the mixture pdf.
-            let (u_choice, u_lobe, u) = (rng.next_f32(), rng.next_f32(), rng.next_vec2());
-            // `mis_pdf` is what MIS with next-event estimation weighs by: the mixture
-            // without the focal term, or the BSDF's share alone (`nee_partner_pdf`); any
-            // function both strategies share keeps the weights summing to one, and these
-            // spare a focal (and a guide) pdf per light sample.
-            let (mut focal_arrival, mut focal_pdf_pending, mut guide_arrival) = (None, false, None);
-            let (wi, factor, bsdf_factor, pdf, mis_pdf, sampled_delta) = if delta {
-                let Some(s) = material.sample(shading, wo, u, u_lobe) else { break };
-                (s.wi, s.weight, s.weight, s.pdf, s.pdf, true)
-            } else {
-                let guide_probability = if distribution.is_some() { guide_share } else { 0.0 };
-                // A direction drawn from a guide comes with that guide's pdf: not evaluated twice.
-                let (wi, f, guide_pdf, focal_pdf) = match (&distribution, focal) {
-                    (_, Some(focal)) if u_choice < focal_share && focal_share > 0.0 => {
-                        let u_point = Vec3::new(u_choice / focal_share, u.x, u.y);
-                        let Some(s) = clock.time(|| focal.sample(point, u_lobe, u_point)) else { break };
-                        (s.direction, material.eval(shading, wo, s.direction), None, Some(s.pdf))
+                throughput *= factor;
+                roulette_throughput *= bsdf_factor;
+                // The scalar factor this vertex applies to what arrives along `wi`: fs·cos/pdf
+                // and, past Russian roulette, 1/survival, exactly as the throughput has it.
+                let carried = luminance(factor) / survival;
+                // Only directions that are actually traced are learned from. A vertex without
+                // an estimate of its own (delta, or no region, or every vertex when the guide
+                // learns from the path's continuation) passes its target back to the previous
+                // one, scaled by its factor.
+                if learning {
+                    if delta || region.is_none() || self.carries_path {
+                        scratch.path.carry(carried);
                     }
-                    (Some(distribution), _) if u_choice < focal_share + guide_probability => {
-                        let s = clock.time(|| distribution.sample(u));
-                        (s.direction, material.eval(shading, wo, s.direction), Some(s.pdf), None)
-                    }
-                    _ => {
-                        let Some(s) = material.sample(shading, wo, u, u_lobe) else { break };
-                        (s.wi, s.weight * s.pdf, None, None)
-                    }
-                };
-                if f == Vec3::ZERO {
-                    break;
+                    let strategies = VertexStrategies {
+                        // Drawn only for a focal guide: other guides' paths keep their numbers.
+                        u_record: if self.focal.is_some() { rng.next_f32() } else { 0.5 },
+                        focal_arrival,
+                        focal_pdf_pending,
+                        guide_arrival,
+                    };
+                    scratch.path.scattered(region, point, wi, pdf, luminance(throughput), strategies);
                 }
-                let guide_pdf = match (&distribution, guide_pdf) {
-                    (Some(distribution), None) => Some(clock.time(|| distribution.pdf(wi))),
-                    (_, known) => known,
-                };
-                let focal_pdf = match (focal, focal_pdf) {
-                    (Some(focal), None) if focal_share > 0.0 => Some(clock.time(|| focal.pdf(point, wi))),
-                    (_, known) => known,
-                };
-                focal_pdf_pending = focal.is_some() && focal_pdf.is_none();
-                let focal_pdf = focal_pdf.unwrap_or(0.0);
-                let bsdf_pdf = material.pdf(shading, wo, wi);
-                let mixture = self.mix_pdf(bsdf_pdf, guide_pdf.map(|g| (g, guide_share)), focal_share);
-                let pdf = mixture + focal_share * focal_pdf;
-                let mis_pdf = if settings.nee_weighs_guide {
-                    mixture
-                } else {
-                    nee_partner_pdf(bsdf_pdf, guide_probability, focal_share)
-                };
-                if !(pdf.is_finite() && pdf > 0.0) {
-                    break;
-                }
-                if let (Some(_), Some(strategy_pdf)) = (self.guide_shares, guide_pdf) {
-                    // As for the focal arrival, the integrand waits for what arrives.
-                    let integrand = luminance(f);
-                    let selection = guide_share;
-                    guide_arrival = Some(StrategyArrival { point, integrand, pdf, strategy_pdf, bsdf_pdf, selection });
-                }
-                if focal.is_some() {
-                    // The integrand is filled in once the path knows what arrived.
-                    let integrand = luminance(f);
-                    let selection = focal_share;
-                    focal_arrival =
-                        Some(FocalArrival { point, direction: wi, integrand, pdf, focal_pdf, bsdf_pdf, selection });
-                }
-                // Where the mixture cannot aim at the focal boxes the two factors are one:
-                // unguided and directionally guided paths survive as they always did (the
-                // BSDF-only rule was measured for focal guiding alone, and the GPU tracer,
-                // which has no focal guide, keeps the same rule).
-                let aims = focal_share > 0.0;
-                let bsdf_factor = if aims && bsdf_pdf > 0.0 { f / bsdf_pdf } else { f / pdf };
-                (wi, f / pdf, bsdf_factor, pdf, mis_pdf, false)
-            };
-            if !factor.is_finite() {
-                break;
+                ray = Ray::new(self.spawn(point, geometric_normal, wi), wi);
+                previous = Some((point, mis_pdf, sampled_delta, nee_cells));
             }
-            throughput *= factor;
-            roulette_throughput *= bsdf_factor;
-            // The scalar factor this vertex applies to what arrives along `wi`: fs·cos/pdf
-            // and, past Russian roulette, 1/survival, exactly as the throughput has it.
-            let carried = luminance(factor) / survival;
-            // Only directions that are actually traced are learned from. A vertex without
-            // an estimate of its own (delta, or no region, or every vertex when the guide
-            // learns from the path's continuation) passes its target back to the previous
-            // one, scaled by its factor.
-            if learning {
-                if delta || region.is_none() || self.carries_path {
-                    scratch.path.carry(carried);
-                }
-                let strategies = VertexStrategies {
-                    // Drawn only for a focal guide: other guides' paths keep their numbers.
-                    u_record: if self.focal.is_some() { rng.next_f32() } else { 0.5 },
-                    focal_arrival,
-                    focal_pdf_pending,
-                    guide_arrival,
-                };
-                scratch.path.scattered(region, point, wi, pdf, luminance(throughput), strategies);
-            }
-            ray = Ray::new(self.spawn(point, geometric_normal, wi), wi);
-            previous = Some((point, mis_pdf, sampled_delta, nee_cells));
+            let Some(branch) = scratch.branches.pop() else { break };
+            (ray, throughput, roulette_throughput, first_depth) =
+                (branch.ray, branch.throughput, branch.roulette_throughput, branch.depth);
+            previous = None;
+            reentry = true;
         }
         if radiance.max_element() > 0.0 {
             counters.nonzero_paths += 1;

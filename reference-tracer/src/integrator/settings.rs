@@ -75,6 +75,9 @@ pub struct IntegratorSettings {
     /// How a camera path decides to end: by its throughput past `rr_depth`, or (guided
     /// methods) by what its continuation is learned to be worth against its cost.
     pub roulette: Roulette,
+    /// With the efficiency-aware roulette: whether a path whose continuation is worth
+    /// more than it costs splits into up to 4 copies there (else it only goes on).
+    pub splitting: bool,
 }
 
 /// How a camera path decides to end (`--roulette`).
@@ -130,6 +133,7 @@ impl Default for IntegratorSettings {
             vpl_paths: DEFAULT_VPL_PATHS,
             vpl_min_distance: DEFAULT_VPL_MIN_DISTANCE,
             roulette: Roulette::Throughput,
+            splitting: false,
         }
     }
 }

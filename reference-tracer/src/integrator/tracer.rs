@@ -50,8 +50,10 @@ pub struct PathScratch<R> {
     /// The path's unoccluded light samples, where it learns from them
     /// (`IntegratorSettings::nee_kickstart`).
     pub(super) light_samples: Vec<LearnedLightSample<R>>,
-    /// The path's vertices as the adjoint-driven roulette learns from them.
+    /// The path's vertices as the efficiency-aware roulette learns from them.
     pub(super) roulette_vertices: Vec<RouletteVertex>,
+    /// Copies of the path split off and not yet traced.
+    pub(super) branches: Vec<Branch>,
     pub(super) clock: GuideClock,
 }
 
@@ -61,9 +63,21 @@ impl<R> Default for PathScratch<R> {
             path: PathRecorder::default(),
             light_samples: Vec::new(),
             roulette_vertices: Vec::new(),
+            branches: Vec::new(),
             clock: GuideClock::default(),
         }
     }
+}
+
+/// A copy of a path split at a vertex, waiting to re-enter it: the vertex's incoming ray,
+/// the copy's share of the throughput (and of the roulette's throughput), and the
+/// vertex's depth.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Branch {
+    pub(super) ray: Ray,
+    pub(super) throughput: Vec3,
+    pub(super) roulette_throughput: Vec3,
+    pub(super) depth: u32,
 }
 
 /// A vertex as the efficiency-aware roulette learns from it once its path is done: what
