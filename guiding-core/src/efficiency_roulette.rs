@@ -28,6 +28,7 @@ use core::sync::atomic::AtomicU32;
 use glam::Vec3;
 
 use crate::atomic_f32;
+use crate::coarse_grid::CoarseGrid;
 use crate::error::{require, Error};
 
 /// Samples a cell's side needs before its means decide anything.
@@ -54,10 +55,7 @@ const SUMS: usize = 5;
 /// which sets how many continuations they get.
 #[derive(Debug)]
 pub struct EfficiencyRoulette {
-    cells: [u32; 3],
-    low: Vec3,
-    /// Cells per unit length.
-    cells_per_unit: f32,
+    grid: CoarseGrid,
     /// Per cell side the sums learned so far (f32 bits, learning).
     sums: Vec<[AtomicU32; SUMS]>,
     /// Per cell side the means of the last rebuild (sampling): outgoing and the
@@ -101,22 +99,10 @@ impl EfficiencyRoulette {
     /// ```
     pub fn new(low: Vec3, high: Vec3, resolution: u32) -> Result<Self, Error> {
         require((1..=128).contains(&resolution), "roulette_resolution", resolution as f64, "in 1..=128")?;
-        if !(low.is_finite() && high.is_finite() && high.cmpge(low).all()) {
-            return Err(Error::InvalidSetting {
-                name: "bounds",
-                value: f64::NAN,
-                requirement: "finite, with high ≥ low on every axis",
-            });
-        }
-        let extent = (high - low).max(Vec3::splat(1e-6));
-        let cell_size = extent.max_element() / resolution as f32;
-        let counts = (extent / cell_size).ceil().max(Vec3::ONE);
-        let cells = [counts.x as u32, counts.y as u32, counts.z as u32];
-        let count = cells.iter().product::<u32>() as usize * SIDES;
+        let grid = CoarseGrid::new(low, high, resolution)?;
+        let count = grid.len() * SIDES;
         Ok(Self {
-            cells,
-            low,
-            cells_per_unit: 1.0 / cell_size,
+            grid,
             sums: (0..count).map(|_| core::array::from_fn(|_| atomic_f32::new(0.0))).collect(),
             means: alloc::vec![[-1.0, -1.0, 0.0]; count],
         })
@@ -126,12 +112,10 @@ impl EfficiencyRoulette {
     /// path arrived from; clamped into the grid); `None` for a non-finite point or normal.
     #[inline]
     pub fn locate(&self, point: Vec3, normal: Vec3) -> Option<RouletteCell> {
-        if !(point.is_finite() && normal.is_finite()) {
+        if !normal.is_finite() {
             return None;
         }
-        let local = ((point - self.low) * self.cells_per_unit).max(Vec3::ZERO);
-        let [nx, ny, nz] = self.cells;
-        let (x, y, z) = ((local.x as u32).min(nx - 1), (local.y as u32).min(ny - 1), (local.z as u32).min(nz - 1));
+        let cell = self.grid.cell(point)?;
         let a = normal.abs();
         let axis = if a.x >= a.y && a.x >= a.z {
             0
@@ -141,7 +125,7 @@ impl EfficiencyRoulette {
             2
         };
         let side = 2 * axis + u32::from(normal[axis as usize] < 0.0);
-        Some(RouletteCell((x + nx * (y + ny * z)) * SIDES as u32 + side))
+        Some(RouletteCell(cell as u32 * SIDES as u32 + side))
     }
 
     /// The radiance a path's pixel is expected to get from a first vertex in `cell` that

@@ -29,6 +29,7 @@ mod bytes;
 pub mod cdf;
 #[cfg(any(feature = "lights", feature = "env", feature = "mixture", feature = "volume"))]
 mod cell_grid;
+mod coarse_grid;
 mod distribution;
 mod error;
 mod frame;

@@ -16,6 +16,7 @@ use core::sync::atomic::AtomicU32;
 use glam::Vec3;
 
 use crate::atomic_f32;
+use crate::coarse_grid::CoarseGrid;
 use crate::error::{require, Error};
 use crate::update_rule::{classify_target, UpdateOutcome};
 
@@ -48,10 +49,7 @@ pub struct StrategyArrival {
 /// Per cell of a grid over a box, the learned share of one strategy.
 #[derive(Debug)]
 pub struct StrategyShares {
-    cells: [u32; 3],
-    low: Vec3,
-    /// Cells per unit length: a multiply per lookup instead of three divides.
-    cells_per_unit: f32,
+    grid: CoarseGrid,
     /// Per cell the estimated second moment at each candidate (Σ F²/(p·p_c)) and the arrivals counted
     /// (f32 bits, learning), and the share chosen at the last rebuild (sampling).
     moments: Vec<[AtomicU32; CANDIDATES.len()]>,
@@ -74,22 +72,10 @@ impl StrategyShares {
     /// sides in proportion; every share 0 until learned.
     pub fn new(low: Vec3, high: Vec3, resolution: u32) -> Result<Self, Error> {
         require((1..=64).contains(&resolution), "share_resolution", resolution as f64, "in 1..=64")?;
-        if !(low.is_finite() && high.is_finite() && high.cmpge(low).all()) {
-            return Err(Error::InvalidSetting {
-                name: "bounds",
-                value: f64::NAN,
-                requirement: "finite, with high ≥ low on every axis",
-            });
-        }
-        let extent = (high - low).max(Vec3::splat(1e-6));
-        let cell_size = extent.max_element() / resolution as f32;
-        let counts = (extent / cell_size).ceil().max(Vec3::ONE);
-        let cells = [counts.x as u32, counts.y as u32, counts.z as u32];
-        let count = cells.iter().product::<u32>() as usize;
+        let grid = CoarseGrid::new(low, high, resolution)?;
+        let count = grid.len();
         Ok(Self {
-            cells,
-            low,
-            cells_per_unit: 1.0 / cell_size,
+            grid,
             moments: (0..count).map(|_| core::array::from_fn(|_| atomic_f32::new(0.0))).collect(),
             means: (0..count).map(|_| atomic_f32::new(0.0)).collect(),
             cost: 0.0,
@@ -110,13 +96,7 @@ impl StrategyShares {
 
     /// The cell holding `point` (clamped into the grid).
     pub(crate) fn cell(&self, point: Vec3) -> Option<usize> {
-        if !point.is_finite() {
-            return None;
-        }
-        let local = ((point - self.low) * self.cells_per_unit).max(Vec3::ZERO);
-        let [nx, ny, nz] = self.cells;
-        let (x, y, z) = ((local.x as u32).min(nx - 1), (local.y as u32).min(ny - 1), (local.z as u32).min(nz - 1));
-        Some((x + nx * (y + ny * z)) as usize)
+        self.grid.cell(point)
     }
 
     /// The share the strategy should get at `point`: of the

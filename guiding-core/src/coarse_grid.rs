@@ -1,0 +1,69 @@
+//! [`CoarseGrid`]: a regular grid of cubic cells over a box, a given number along its
+//! longest side; the spatial index of the learned shares and the learned roulette.
+
+use glam::Vec3;
+
+use crate::error::Error;
+
+/// Cubic cells over a box, `resolution` along the longest side and the other sides in
+/// proportion (at least one each); points outside use the nearest cell.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct CoarseGrid {
+    cells: [u32; 3],
+    low: Vec3,
+    /// Cells per unit length: a multiply per lookup instead of three divides.
+    cells_per_unit: f32,
+}
+
+impl CoarseGrid {
+    /// The grid over `low..high` (finite, high ≥ low), `resolution` (≥ 1, its owner's
+    /// setting, checked there) cells along the longest side.
+    pub(crate) fn new(low: Vec3, high: Vec3, resolution: u32) -> Result<Self, Error> {
+        let resolution = resolution.max(1);
+        if !(low.is_finite() && high.is_finite() && high.cmpge(low).all()) {
+            return Err(Error::InvalidSetting {
+                name: "bounds",
+                value: f64::NAN,
+                requirement: "finite, with high ≥ low on every axis",
+            });
+        }
+        let extent = (high - low).max(Vec3::splat(1e-6));
+        let cell_size = extent.max_element() / resolution as f32;
+        let counts = (extent / cell_size).ceil().max(Vec3::ONE);
+        Ok(Self { cells: [counts.x as u32, counts.y as u32, counts.z as u32], low, cells_per_unit: 1.0 / cell_size })
+    }
+
+    /// Cells in the grid.
+    pub(crate) fn len(&self) -> usize {
+        self.cells.iter().product::<u32>() as usize
+    }
+
+    /// The cell holding `point` (clamped into the grid); `None` for a non-finite point.
+    #[inline]
+    pub(crate) fn cell(&self, point: Vec3) -> Option<usize> {
+        if !point.is_finite() {
+            return None;
+        }
+        let local = ((point - self.low) * self.cells_per_unit).max(Vec3::ZERO);
+        let [nx, ny, nz] = self.cells;
+        let (x, y, z) = ((local.x as u32).min(nx - 1), (local.y as u32).min(ny - 1), (local.z as u32).min(nz - 1));
+        Some((x + nx * (y + ny * z)) as usize)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cells_follow_the_longest_side_and_clamp_points_outside() {
+        let grid = CoarseGrid::new(Vec3::ZERO, Vec3::new(4.0, 2.0, 1.0), 4).unwrap();
+        assert_eq!(grid.len(), 4 * 2);
+        assert_eq!(grid.cell(Vec3::new(0.5, 0.5, 0.5)), Some(0));
+        assert_eq!(grid.cell(Vec3::new(3.5, 1.5, 0.5)), Some(7));
+        assert_eq!(grid.cell(Vec3::new(-9.0, 9.0, 0.5)), Some(4));
+        assert_eq!(grid.cell(Vec3::NAN), None);
+        let err = CoarseGrid::new(Vec3::ONE, Vec3::ZERO, 4).unwrap_err();
+        assert!(alloc::format!("{err}").contains("bounds"));
+    }
+}
