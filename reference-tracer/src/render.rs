@@ -521,10 +521,9 @@ pub(crate) enum PassFate {
 }
 
 /// The bookkeeping after a pass has been added to `film` (and counted by its `end_pass`)
-/// and to `statistics`, shared by
-/// the CPU and GPU render loops: a pass that leaves the image (`PassFate::Discard`) is
-/// taken out of the film again with the rest of its iteration; otherwise `on_pass` sees
-/// the state. Returns whether the budget is reached.
+/// and to `statistics`, shared by the CPU and GPU render loops: a pass that leaves the
+/// image (`PassFate::Discard`) is taken out of the film again with the rest of its
+/// iteration; otherwise `on_pass` sees the state. Returns whether the budget is reached.
 pub(crate) fn end_of_pass(
     film: &mut Film,
     statistics: &mut RenderStatistics,
