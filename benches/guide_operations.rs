@@ -1,8 +1,10 @@
 //! Nanoseconds per guide operation on a 1,000-probe hemisphere grid over a closed box
 //! (the Cornell box's walls): locate, sample, pdf, update, estimate, rebuild; and on a
 //! learned spatial × directional tree over the same box: a render-time vertex (locate,
-//! distribution, sample, pdf) and a record; and on a focal guide taught an opening in
-//! the box: its pdf of a direction (half of them drawn towards its boxes) and a sample.
+//! distribution, sample, pdf), a record learned in place, and one pushed to a thread's
+//! records and splatted between passes (each timed apart); and on a focal guide taught
+//! an opening in the box: its pdf of a direction (half of them drawn towards its boxes)
+//! and a sample.
 //!
 //! `cargo bench --bench guide_operations`
 
@@ -10,13 +12,14 @@
 mod support;
 
 use std::hint::black_box;
+use std::time::{Duration, Instant};
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use glam::{Vec2, Vec3};
 use guiding_core::focal::{FocalGuide, FocalGuideSettings, FocalRecord};
 use guiding_core::{
     DirectionalDistribution, Guide, HemisphereGrid, HemisphereGridSettings, Lambertian, Pcg32, ProbeSet,
-    SpatialDirectionalTree, SpatialDirectionalTreeSettings,
+    SpatialDirectionalTree, SpatialDirectionalTreeSettings, TreeRecords,
 };
 
 fn bench(c: &mut Criterion) {
@@ -154,6 +157,35 @@ fn bench_tree(c: &mut Criterion) {
             black_box(tree.update_sampled(black_box(region), black_box(s.direction), black_box(0.5), s.pdf))
         })
     });
+    // Per-thread records: the push a vertex pays during the pass, and the splat that
+    // learns it between passes, timed apart (records made 4096 at a time, as a worker's
+    // share of a pass would be).
+    let mut buffer = TreeRecords::default();
+    let mut time_records = |time_push: bool, iters: u64| {
+        let (mut pushes, mut splats) = (Duration::ZERO, Duration::ZERO);
+        let mut done = 0u64;
+        while done < iters {
+            let chunk = (iters - done).min(4096);
+            let start = Instant::now();
+            for _ in 0..chunk {
+                i = (i + 1) % count;
+                let (region, s) = records[i];
+                black_box(tree.record(&mut buffer, black_box(region), black_box(s.direction), black_box(0.5), s.pdf));
+            }
+            pushes += start.elapsed();
+            let start = Instant::now();
+            black_box(tree.splat(&mut buffer));
+            splats += start.elapsed();
+            done += chunk;
+        }
+        if time_push {
+            pushes
+        } else {
+            splats
+        }
+    };
+    c.bench_function("tree_record_push", |b| b.iter_custom(|iters| time_records(true, iters)));
+    c.bench_function("tree_record_splat", |b| b.iter_custom(|iters| time_records(false, iters)));
     let stats = tree.stats();
     println!(
         "tree: {} leaves, {} directional nodes (deepest {}), {} bytes",

@@ -25,6 +25,11 @@ pub trait Guide: Sync + Sized {
     /// A located region (e.g. a probe); cheap to copy, valid until the guide changes shape.
     type Region: Copy + Debug + PartialEq + Send + Sync;
 
+    /// A thread's records of one pass, for a guide that learns from them between passes
+    /// ([`record`](Self::record), then [`splat`](Self::splat)); `()` for a guide that
+    /// learns in place.
+    type Records: Default + Debug + Send;
+
     /// The directional distribution of one region.
     type Distribution<'a>: DirectionalDistribution
     where
@@ -61,6 +66,32 @@ pub trait Guide: Sync + Sized {
     fn update_sampled(&self, region: Self::Region, direction: Vec3, target: f32, pdf: f32) -> UpdateOutcome {
         let _ = pdf;
         self.update(region, direction, target)
+    }
+
+    /// [`update_sampled`](Self::update_sampled) through a thread's own `records`: a guide
+    /// that keeps records appends one there (no write the other threads see) and learns
+    /// it at [`splat`](Self::splat); the others learn it in place, as `update_sampled`.
+    /// The records grow with the pass; kept from pass to pass they stop allocating.
+    fn record(
+        &self,
+        records: &mut Self::Records,
+        region: Self::Region,
+        direction: Vec3,
+        target: f32,
+        pdf: f32,
+    ) -> UpdateOutcome {
+        let _ = records;
+        self.update_sampled(region, direction, target, pdf)
+    }
+
+    /// Learns a thread's `records` of the pass just traced and empties them (keeping
+    /// their room). Call it for every thread's records after the pass and before
+    /// [`rebuild_sampling`](Self::rebuild_sampling): records point into the shape the
+    /// guide had when they were made. Returns how many records were left out because the
+    /// guide changed shape since they were made (0 when called as said).
+    fn splat(&mut self, records: &mut Self::Records) -> usize {
+        let _ = records;
+        0
     }
 
     /// Estimates `∫ Q(region, ωi) fs(ωi, wo) cos θi dωi` (radiance) with the guide's

@@ -99,6 +99,23 @@ impl<R: Copy, E> RecordedVertex<R, E> {
             guide.update(region, self.direction, target)
         })
     }
+
+    /// [`teach`](Self::teach) through a thread's own `records` ([`Guide::record`]) when
+    /// `density_weighted`; the guide learns them at [`Guide::splat`] after the pass.
+    pub fn teach_into<G: Guide<Region = R>>(
+        &self,
+        guide: &G,
+        records: &mut G::Records,
+        target: f32,
+        density_weighted: bool,
+    ) -> Option<UpdateOutcome> {
+        let region = self.region?;
+        Some(if density_weighted {
+            guide.record(records, region, self.direction, target, self.pdf)
+        } else {
+            guide.update(region, self.direction, target)
+        })
+    }
 }
 
 /// The vertices of the path being traced. `R` is the guide's region, `E` whatever else

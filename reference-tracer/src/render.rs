@@ -2,6 +2,7 @@
 //! count or a wall-clock budget is reached; guided methods learn during every pass and
 //! rebuild their sampling distributions between passes.
 
+use std::sync::Mutex;
 use std::time::Instant;
 
 use glam::Vec3;
@@ -230,6 +231,8 @@ pub fn render<I: Intersector, G: Guide>(
     let scene_tracer = PathTracer::<I, G>::new(scene, intersector, settings.integrator);
     // What the efficiency-aware roulette weighs paths against.
     let mut image_estimates = ImageEstimates::default();
+    // The workers' records for the directional guide, kept across passes for their room.
+    let mut guide_records: Vec<G::Records> = Vec::new();
     loop {
         let pass = traced;
         traced += 1;
@@ -255,12 +258,19 @@ pub fn render<I: Intersector, G: Guide>(
         } else if settings.integrator.method.gathers_virtual_lights() {
             vpl_pass(&tracer, &mut film, pass_seed)
         } else {
-            camera_pass(&tracer, &mut film, &image_estimates, pass_seed)
+            camera_pass(&tracer, &mut film, &image_estimates, pass_seed, &mut guide_records)
         };
         film.end_pass();
         statistics.add_pass(pass_sum, width * height, counters);
         image_estimates.count_pass(&counters);
         let rebuild = Instant::now();
+        // The guide learns the pass's records before anything refits it (so none is stale).
+        if let Some(guide) = guide.as_deref_mut() {
+            for records in &mut guide_records {
+                let left_out = guide.splat(records);
+                debug_assert_eq!(left_out, 0, "records splatted after a refit");
+            }
+        }
         let step = match settings.schedule {
             Schedule::Online => None,
             Schedule::Iterative => Some(training.after_pass(start.elapsed().as_secs_f64(), settings.budget)),
@@ -345,19 +355,43 @@ fn connection_threshold(roulette: f32, statistics: &RenderStatistics) -> f32 {
 
 /// One camera path per pixel, added to `film`; the pass's counters and radiance sum.
 /// `image_estimates` tells the efficiency-aware roulette what each pixel is expected to
-/// be.
+/// be. The workers' guide records of the pass come back in `records` (whose buffers they
+/// took up, so their room is reused), for [`Guide::splat`].
 fn camera_pass<I: Intersector, G: Guide>(
     tracer: &PathTracer<'_, I, G>,
     film: &mut Film,
     image_estimates: &ImageEstimates,
     pass_seed: u64,
+    records: &mut Vec<G::Records>,
 ) -> (PathCounters, [f64; 3]) {
     let width = film.width();
-    pixel_pass(film, pass_seed, PathScratch::default, |scratch, (x, y), rng, counters| {
+    let pool = Mutex::new(std::mem::take(records));
+    let scratch = || {
+        let mut scratch = PathScratch::default();
+        scratch.records = pool.lock().unwrap_or_else(|poisoned| poisoned.into_inner()).pop().unwrap_or_default();
+        ReturningScratch { scratch, pool: &pool }
+    };
+    let pass = pixel_pass(film, pass_seed, scratch, |worker, (x, y), rng, counters| {
         let ray = tracer.camera_ray(x, y, rng);
         let estimate = image_estimates.pixel(y as usize * width + x as usize);
-        tracer.radiance(ray, estimate, rng, scratch, counters)
-    })
+        tracer.radiance(ray, estimate, rng, &mut worker.scratch, counters)
+    });
+    *records = pool.into_inner().unwrap_or_else(|poisoned| poisoned.into_inner());
+    pass
+}
+
+/// A worker's scratch space, whose guide records go back to the pass's `pool` when the
+/// worker is done with it.
+struct ReturningScratch<'a, R, B: Default> {
+    scratch: PathScratch<R, B>,
+    pool: &'a Mutex<Vec<B>>,
+}
+
+impl<R, B: Default> Drop for ReturningScratch<'_, R, B> {
+    fn drop(&mut self) {
+        let records = std::mem::take(&mut self.scratch.records);
+        self.pool.lock().unwrap_or_else(|poisoned| poisoned.into_inner()).push(records);
+    }
 }
 
 /// Instant radiosity: the pass's virtual point lights from `vpl_paths` light subpaths

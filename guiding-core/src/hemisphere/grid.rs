@@ -509,6 +509,7 @@ impl TableRow for ProbeRow<'_> {
 }
 
 impl Guide for HemisphereGrid {
+    type Records = ();
     type Region = ProbeId;
     type Distribution<'a> = ProbeDistribution<'a>;
 

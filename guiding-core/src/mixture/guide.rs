@@ -303,6 +303,7 @@ impl Clone for GaussianMixture {
 }
 
 impl Guide for GaussianMixture {
+    type Records = ();
     type Region = MixtureRegion;
     type Distribution<'a> = MixtureDistribution<'a>;
 

@@ -63,10 +63,24 @@ impl LeafCounts {
     /// Counts one record in `half` (0 or 1) whose surface had `normal`.
     #[inline]
     pub(crate) fn add(&self, half: usize, normal: Vec3) {
-        let slot = 4 * (half & 1) + aligned_axis(normal).unwrap_or(3) as usize;
-        let count = &self.0[slot];
+        let count = &self.0[Self::slot(half, normal)];
         if count.load(Ordering::Relaxed) < COUNT_CEILING {
             count.fetch_add(1, Ordering::Relaxed);
+        }
+    }
+
+    /// Where [`add`](Self::add) counts a record in `half` whose surface had `normal`: 0..8.
+    #[inline]
+    pub(crate) fn slot(half: usize, normal: Vec3) -> usize {
+        4 * (half & 1) + aligned_axis(normal).unwrap_or(3) as usize
+    }
+
+    /// [`add`](Self::add) by its [`slot`](Self::slot), with the counts held alone.
+    #[inline]
+    pub(crate) fn add_to_slot(&mut self, slot: usize) {
+        let count = self.0[slot & 7].get_mut();
+        if *count < COUNT_CEILING {
+            *count += 1;
         }
     }
 

@@ -11,6 +11,7 @@ use glam::{Vec2, Vec3};
 use super::axis::{rotated_cells, LeafCounts, ROTATED_NODES, ROTATED_SIDE};
 use super::distribution::TreeDistribution;
 use super::quadtree::{self, EpochBlend, QuadNode, RefitRule, NODE_BYTES};
+use super::records::TreeRecords;
 use super::settings::SpatialDirectionalTreeSettings;
 use super::spatial::{locate_leaf, split_leaf, Parent, SpatialNode, LEAF, SPATIAL_NODE_BYTES};
 use super::square::{direction_to_square, to_axis_frame, SQUARE_TO_SOLID_ANGLE};
@@ -65,8 +66,10 @@ pub(crate) const LEAF_BYTES: usize = core::mem::size_of::<SpatialLeaf>() + core:
 ///
 /// Learning is by records: [`update_sampled`](Guide::update_sampled) adds target/pdf to
 /// the building sum of the quadtree cell the direction falls in (one lock-free add; the
-/// sampling side is read-only during a pass), so each cell estimates the flux ∫ L dω over
-/// its solid angle whatever density drew its directions (with the settings'
+/// sampling side is read-only during a pass), or [`record`](Guide::record) appends it to
+/// a thread's own [`TreeRecords`](crate::TreeRecords), added by [`splat`](Guide::splat)
+/// after the pass with no write shared between threads. Each cell estimates the flux
+/// ∫ L dω over its solid angle whatever density drew its directions (with the settings'
 /// `second_moment`, the default, target²/pdf and ∫ L² dω, whose root gives the cell
 /// its share). Between passes
 /// [`rebuild_sampling`](Guide::rebuild_sampling) blends each leaf's new estimate with its
@@ -286,6 +289,33 @@ impl SpatialDirectionalTree {
         }
     }
 
+    /// What a record of `target` along `direction` (drawn with density `pdf`) in `region`
+    /// adds: its weight and its point in the leaf's square; or the outcome that leaves it
+    /// out (bad targets counted).
+    pub(super) fn checked_record(
+        &self,
+        region: TreeRegion,
+        direction: Vec3,
+        target: f32,
+        pdf: f32,
+    ) -> Result<(f32, Vec2), UpdateOutcome> {
+        let target = classify_target(target).inspect_err(|outcome| {
+            let counter = match outcome {
+                UpdateOutcome::RejectedNegative => &self.rejected_negative,
+                _ => &self.rejected_non_finite,
+            };
+            atomic_f32::increment_saturating(counter);
+        })?;
+        let unit = direction.is_finite() && (direction.length_squared() - 1.0).abs() < 1e-3;
+        let leaf = self.leaves.get(region.leaf as usize).ok_or(UpdateOutcome::OutsideDomain)?;
+        if !(unit && pdf.is_finite() && pdf > 0.0) {
+            return Err(UpdateOutcome::OutsideDomain);
+        }
+        let moment = if self.settings.second_moment { target * target } else { target };
+        let weight = (moment / pdf).min(f32::MAX);
+        Ok((weight, direction_to_square(to_axis_frame(direction, leaf.axis))))
+    }
+
     /// Splits every leaf whose records (over all epochs, halved at each split) pass the
     /// threshold, heaviest first, as long as the budget holds; halves keep splitting
     /// while their share does. A leaf whose epoch's normals are mixed (the settings'
@@ -452,29 +482,34 @@ impl Guide for SpatialDirectionalTree {
     }
 
     fn update_sampled(&self, region: TreeRegion, direction: Vec3, target: f32, pdf: f32) -> UpdateOutcome {
-        let target = match classify_target(target) {
-            Ok(target) => target,
-            Err(outcome) => {
-                let counter = match outcome {
-                    UpdateOutcome::RejectedNegative => &self.rejected_negative,
-                    _ => &self.rejected_non_finite,
-                };
-                atomic_f32::increment_saturating(counter);
-                return outcome;
-            }
+        let (weight, p) = match self.checked_record(region, direction, target, pdf) {
+            Ok(record) => record,
+            Err(outcome) => return outcome,
         };
-        let unit = direction.is_finite() && (direction.length_squared() - 1.0).abs() < 1e-3;
-        let Some(leaf) = self.leaves.get(region.leaf as usize) else { return UpdateOutcome::OutsideDomain };
-        if !(unit && pdf.is_finite() && pdf > 0.0) {
-            return UpdateOutcome::OutsideDomain;
-        }
-        let moment = if self.settings.second_moment { target * target } else { target };
-        let weight = (moment / pdf).min(f32::MAX);
-        let p = direction_to_square(to_axis_frame(direction, leaf.axis));
-        let cell = quadtree::leaf_cell(&self.quad, leaf.root, p);
+        let root = self.leaves[region.leaf as usize].root;
+        let cell = quadtree::leaf_cell(&self.quad, root, p);
         quadtree::add_record(&self.sums, cell, weight);
         self.leaf_counts[region.leaf as usize].add(region.upper_half as usize, region.normal);
         UpdateOutcome::Accepted
+    }
+
+    type Records = TreeRecords;
+
+    /// Appends the record to the thread's `records`: the square point and the weight,
+    /// nothing written that other threads read.
+    fn record(
+        &self,
+        records: &mut TreeRecords,
+        region: TreeRegion,
+        direction: Vec3,
+        target: f32,
+        pdf: f32,
+    ) -> UpdateOutcome {
+        self.record_into(records, region, direction, target, pdf)
+    }
+
+    fn splat(&mut self, records: &mut TreeRecords) -> usize {
+        self.splat_records(records)
     }
 
     fn estimate_integral<S: ScatteringFunction + ?Sized>(

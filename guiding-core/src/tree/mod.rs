@@ -7,7 +7,8 @@
 //! - Each leaf's square is built around the world axis its records' normals lie along:
 //!   for such a normal, sampling and the pdf descend the leaf's quadtree once each, in
 //!   the half of the square above the surface; for other normals the sphere folds onto
-//!   the hemisphere (the pdf descends twice). A record is one descent and lock-free adds.
+//!   the hemisphere (the pdf descends twice). A record is one descent and lock-free adds,
+//!   or, through a thread's own [`TreeRecords`], an append learned between passes.
 //! - Where the normal lies along the axis, the half is sampled by the tree's density
 //!   times cos θ (the settings' `cosine_product`), from a second set of cell
 //!   probabilities computed at each refit.
@@ -18,6 +19,7 @@ mod distribution;
 mod guide;
 mod merge;
 mod quadtree;
+mod records;
 mod serialize;
 mod settings;
 mod spatial;
@@ -25,5 +27,6 @@ mod square;
 
 pub use distribution::TreeDistribution;
 pub use guide::{SpatialDirectionalTree, TreeRegion};
+pub use records::TreeRecords;
 pub use serialize::{FORMAT_VERSION, STRUCTURE_TAG};
 pub use settings::{SpatialDirectionalTreeSettings, MAX_DIRECTIONAL_DEPTH, MAX_SPATIAL_DEPTH};

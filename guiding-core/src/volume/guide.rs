@@ -498,6 +498,7 @@ impl TableRow for LeafRow<'_> {
 }
 
 impl Guide for IrradianceVolume {
+    type Records = ();
     type Region = VolumeRegion;
     type Distribution<'a> = VolumeDistribution<'a>;
 

@@ -29,9 +29,9 @@ pub(super) struct RenderArgs {
     /// from a few light subpaths per pass, gathered at the first surface; biased by its
     /// clamp, coherent across the frames of an animation) or vpl-guided (its light
     /// subpaths guided by W, learned from what each virtual light gave). Default
-    /// guided-nee: at 60 s, with the guided
-    /// defaults, its relMSE ÷ nee's was 0.423 and 0.428 on door 160×120 (seeds 41, 42),
-    /// 0.743 and 0.917 on cornell 128²; six scenes in the README.
+    /// guided-nee: at 60 s, with the guided defaults, its relMSE ÷ nee's was 0.268 and
+    /// 0.286 on door 160×120 (seeds 41, 42), 0.888 and 0.912 on cornell 128²; six scenes
+    /// in the README.
     #[arg(long, default_value = "guided-nee", value_parser = parse_method)]
     pub(super) integrator: Method,
     #[command(flatten)]

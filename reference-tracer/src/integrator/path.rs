@@ -30,7 +30,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         mut ray: Ray,
         pixel_estimate: Option<f32>,
         rng: &mut Pcg32,
-        scratch: &mut PathScratch<G::Region>,
+        scratch: &mut PathScratch<G::Region, G::Records>,
         counters: &mut PathCounters,
     ) -> Vec3 {
         let settings = &self.settings;
@@ -409,9 +409,8 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         if learning {
             // Drawn after the path, so the share leaves the path's own numbers alone.
             let focal_learns = self.focal.is_some() && rng.next_f32() < settings.focal_learning_share;
-            let path = &scratch.path;
-            let light_samples = &scratch.light_samples;
-            scratch.clock.time(|| self.teach_learners(path, light_samples, focal_learns));
+            let (path, light_samples, records) = (&scratch.path, &scratch.light_samples, &mut scratch.records);
+            scratch.clock.time(|| self.teach_learners(path, light_samples, records, focal_learns));
         }
         if scratch.clock.enabled {
             counters.timed_paths += 1;
@@ -445,13 +444,14 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
     }
 
     /// Teaches the finished path to every learner: the directional guide its Eq. (1)
-    /// targets (from the recorder), the learned shares and the focal guide what arrived
-    /// along each direction. Rejected targets are counted by the guide itself (its
-    /// `stats()`).
+    /// targets (from the recorder, through the thread's `records`), the learned shares
+    /// and the focal guide what arrived along each direction. Rejected targets are
+    /// counted by the guide itself (its `stats()`).
     pub(super) fn teach_learners(
         &self,
         path: &PathRecorder<G::Region, VertexStrategies>,
         light_samples: &[LearnedLightSample<G::Region>],
+        records: &mut G::Records,
         focal_learns: bool,
     ) {
         let focal = self.focal.filter(|_| focal_learns);
@@ -465,13 +465,13 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             for sample in light_samples {
                 let record = &sample.record;
                 let pdf = record.light_pdf + record.scatter_pdf;
-                guide.update_sampled(sample.region, record.direction, record.incident, pdf);
+                guide.record(records, sample.region, record.direction, record.incident, pdf);
             }
         }
         // One pass over the targets feeds every learner.
         for (vertex, target) in path.targets() {
             if let Some(guide) = self.guide {
-                vertex.teach(guide, target, weighted);
+                vertex.teach_into(guide, records, target, weighted);
             }
             let strategies = &vertex.extra;
             if let (Some(shares), Some(arrival)) = (self.guide_shares, strategies.guide_arrival) {

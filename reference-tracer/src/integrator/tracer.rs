@@ -44,8 +44,11 @@ pub struct VertexStrategies {
 }
 
 /// Per-thread scratch space reused across paths (no allocation per path); `R` is the
-/// guide's region type.
-pub struct PathScratch<R> {
+/// guide's region type, `B` its per-thread records ([`Guide::Records`]).
+pub struct PathScratch<R, B = ()> {
+    /// The directional guide's records of this thread's paths in the pass, for
+    /// [`Guide::splat`] after it.
+    pub records: B,
     pub(super) path: PathRecorder<R, VertexStrategies>,
     /// The path's unoccluded light samples, where it learns from them
     /// (`IntegratorSettings::nee_kickstart`).
@@ -57,9 +60,10 @@ pub struct PathScratch<R> {
     pub(super) clock: GuideClock,
 }
 
-impl<R> Default for PathScratch<R> {
+impl<R, B: Default> Default for PathScratch<R, B> {
     fn default() -> Self {
         Self {
+            records: B::default(),
             path: PathRecorder::default(),
             light_samples: Vec::new(),
             roulette_vertices: Vec::new(),
