@@ -95,6 +95,7 @@ impl StrategyShares {
     }
 
     /// The cell holding `point` (clamped into the grid).
+    #[inline]
     pub(crate) fn cell(&self, point: Vec3) -> Option<usize> {
         self.grid.cell(point)
     }
