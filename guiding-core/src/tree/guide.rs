@@ -496,7 +496,8 @@ impl Guide for SpatialDirectionalTree {
     type Records = TreeRecords;
 
     /// Appends the record to the thread's `records`: the square point and the weight,
-    /// nothing written that other threads read.
+    /// nothing written that other threads read. A leaf beyond what a record can name
+    /// (never within a realistic budget) learns in place.
     fn record(
         &self,
         records: &mut TreeRecords,
@@ -505,7 +506,16 @@ impl Guide for SpatialDirectionalTree {
         target: f32,
         pdf: f32,
     ) -> UpdateOutcome {
-        self.record_into(records, region, direction, target, pdf)
+        if !TreeRecords::can_name(region.leaf) {
+            return self.update_sampled(region, direction, target, pdf);
+        }
+        match self.checked_record(region, direction, target, pdf) {
+            Ok((weight, square)) => {
+                records.push(self.epoch, region, square, weight);
+                UpdateOutcome::Accepted
+            }
+            Err(outcome) => outcome,
+        }
     }
 
     fn splat(&mut self, records: &mut TreeRecords) -> usize {

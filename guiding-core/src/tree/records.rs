@@ -5,12 +5,11 @@
 
 use alloc::vec::Vec;
 
-use glam::{Vec2, Vec3};
+use glam::Vec2;
 
 use super::axis::LeafCounts;
 use super::guide::{SpatialDirectionalTree, TreeRegion};
 use super::quadtree;
-use crate::update_rule::UpdateOutcome;
 
 /// Bits of a record's word that name its leaf; the three above hold its count slot.
 const LEAF_BITS: u32 = 29;
@@ -62,34 +61,24 @@ impl TreeRecords {
     pub fn is_empty(&self) -> bool {
         self.records.is_empty()
     }
+
+    /// Whether a record can name `leaf`.
+    pub(super) fn can_name(leaf: u32) -> bool {
+        leaf < 1 << LEAF_BITS
+    }
+
+    /// Appends the record of `weight` at `square` in `region`'s leaf (which
+    /// [`can_name`](Self::can_name)), made by a tree at `epoch`.
+    pub(super) fn push(&mut self, epoch: u32, region: TreeRegion, square: Vec2, weight: f32) {
+        if self.records.is_empty() {
+            self.epoch = epoch;
+        }
+        let slot = LeafCounts::slot(region.upper_half as usize, region.normal) as u32;
+        self.records.push(TreeRecord { square, weight, leaf_and_slot: region.leaf | slot << LEAF_BITS });
+    }
 }
 
 impl SpatialDirectionalTree {
-    /// [`Guide::record`](crate::Guide::record): appends to `records`. A leaf beyond what a
-    /// record can name (never within a realistic budget) learns in place.
-    pub(super) fn record_into(
-        &self,
-        records: &mut TreeRecords,
-        region: TreeRegion,
-        direction: Vec3,
-        target: f32,
-        pdf: f32,
-    ) -> UpdateOutcome {
-        if region.leaf >= 1 << LEAF_BITS {
-            return crate::Guide::update_sampled(self, region, direction, target, pdf);
-        }
-        let (weight, square) = match self.checked_record(region, direction, target, pdf) {
-            Ok(record) => record,
-            Err(outcome) => return outcome,
-        };
-        if records.records.is_empty() {
-            records.epoch = self.epoch;
-        }
-        let slot = LeafCounts::slot(region.upper_half as usize, region.normal) as u32;
-        records.records.push(TreeRecord { square, weight, leaf_and_slot: region.leaf | slot << LEAF_BITS });
-        UpdateOutcome::Accepted
-    }
-
     /// [`Guide::splat`](crate::Guide::splat): adds every record to its cell's building sum
     /// and its leaf's counts, then empties `records`; returns how many were left out
     /// (made before the last refit, or naming a leaf this tree lacks).
@@ -118,7 +107,9 @@ impl SpatialDirectionalTree {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::update_rule::UpdateOutcome;
     use crate::{Guide, Pcg32, SpatialDirectionalTreeSettings};
+    use glam::Vec3;
 
     fn tree() -> SpatialDirectionalTree {
         let settings = SpatialDirectionalTreeSettings { min_split_records: 1, ..Default::default() };
