@@ -304,11 +304,11 @@ pub struct TraceOptions {
     /// --rr-depth by the path's throughput) or efficiency (learned in the training passes
     /// per cell side: in the frozen passes every vertex weighs what its continuation's
     /// light varies by against what going on costs and the image's variance; Rath et al.
-    /// 2022). Unguided methods, learning passes and the GPU tracer always use throughput. Default
-    /// efficiency for guided-nee and guided on the CPU, else throughput: relMSE
-    /// efficiency ÷ throughput, seed 41, guided-nee at 30 s door 160×120 0.63, cornell 128²
-    /// 0.97, at 60 s Veach Ajar 0.85, living room 0.76; guided at 30 s door 0.25, cornell
-    /// 0.54.
+    /// 2022). Unguided methods, learning passes and the GPU tracer always use throughput.
+    /// Default efficiency for guided-nee and guided on the CPU, else throughput: relMSE
+    /// efficiency ÷ throughput, seed 41, guided-nee at 30 s door 160×120 0.63, cornell
+    /// 128² 0.97, at 60 s Veach Ajar 0.85, living room 0.76; guided at 30 s door 0.25,
+    /// cornell 0.54.
     #[arg(long, value_parser = parse_roulette_kind)]
     pub(super) roulette: Option<RouletteKind>,
     /// --roulette efficiency: whether a path whose continuation is worth more than it

@@ -83,24 +83,10 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                 let Some((hit, material)) = next else {
                     if let (false, Some(environment)) = (reentering, &self.scene.environment) {
                         let emitted = environment.radiance(ray.direction);
-                        let light_pdf = match previous {
-                            Some((from, _, false, cells)) if nee => {
-                                self.next_event_probability(cells.gate)
-                                    * self.environment_choice
-                                    * self.environment_pdf(environment, from, ray.direction)
-                            }
-                            _ => 0.0,
+                        let light_pdf = |from, _: NeeCells| {
+                            self.environment_choice * self.environment_pdf(environment, from, ray.direction)
                         };
-                        let weight = match previous {
-                            Some((_, pdf, false, _)) if nee => power_heuristic(pdf, light_pdf),
-                            _ => 1.0,
-                        };
-                        radiance += throughput * emitted * weight;
-                        scratch.path.arrive(weight * luminance(emitted));
-                        if kickstart {
-                            scratch.path.arrive_learned_only((1.0 - weight) * luminance(emitted));
-                            scratch.path.add_density(light_pdf);
-                        }
+                        radiance += throughput * self.emission_reached(previous, emitted, light_pdf, &mut scratch.path);
                     }
                     break;
                 };
@@ -110,25 +96,10 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
 
                 // Emission from the front face.
                 if !reentering && material.is_emissive() && geometric_normal.dot(wo) > 0.0 {
-                    let light_pdf = match previous {
-                        Some((from, _, false, cells)) if nee => {
-                            self.next_event_probability(cells.gate)
-                                * self.light_pdf(&hit, from, cells.light, point, geometric_normal)
-                        }
-                        _ => 0.0,
-                    };
-                    let weight = match previous {
-                        Some((_, pdf, false, _)) if nee => power_heuristic(pdf, light_pdf),
-                        _ => 1.0,
-                    };
-                    radiance += throughput * material.emission * weight;
-                    scratch.path.arrive(weight * luminance(material.emission));
-                    if kickstart {
-                        // The guide learns the emission whole, this direction weighed by the
-                        // density of both strategies that find it (the light samples too).
-                        scratch.path.arrive_learned_only((1.0 - weight) * luminance(material.emission));
-                        scratch.path.add_density(light_pdf);
-                    }
+                    let light_pdf =
+                        |from, cells: NeeCells| self.light_pdf(&hit, from, cells.light, point, geometric_normal);
+                    radiance +=
+                        throughput * self.emission_reached(previous, material.emission, light_pdf, &mut scratch.path);
                 }
                 // The roulette's cell side: the face the path arrived at.
                 let roulette_cell = self.roulette.and_then(|roulette| {
@@ -441,6 +412,35 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             Some((guide_pdf, p)) => p * guide_pdf + (1.0 - p - focal_share) * bsdf_pdf,
             None => (1.0 - focal_share) * bsdf_pdf,
         }
+    }
+
+    /// What of `emitted` (radiance) the path counts where its scattered direction from
+    /// `previous` (point, mixture pdf, delta, cells) reached it: weighed by MIS against
+    /// next-event estimation, whose density of the same point `light_pdf(from, cells)`
+    /// gives (per steradian, before the gate), asked only where next-event estimation
+    /// could have found it. Tells the recorder what arrived; under the kickstart the
+    /// guide learns the emission whole, this direction weighed by the density of both
+    /// strategies that find it (the light samples too).
+    fn emission_reached(
+        &self,
+        previous: Option<(Vec3, f32, bool, NeeCells)>,
+        emitted: Vec3,
+        light_pdf: impl FnOnce(Vec3, NeeCells) -> f32,
+        path: &mut PathRecorder<G::Region, VertexStrategies>,
+    ) -> Vec3 {
+        let (weight, light_pdf) = match previous {
+            Some((from, pdf, false, cells)) if self.estimates_nee() => {
+                let light_pdf = self.next_event_probability(cells.gate) * light_pdf(from, cells);
+                (power_heuristic(pdf, light_pdf), light_pdf)
+            }
+            _ => (1.0, 0.0),
+        };
+        path.arrive(weight * luminance(emitted));
+        if self.kickstarts() {
+            path.arrive_learned_only((1.0 - weight) * luminance(emitted));
+            path.add_density(light_pdf);
+        }
+        emitted * weight
     }
 
     /// Teaches the finished path to every learner: the directional guide its Eq. (1)
