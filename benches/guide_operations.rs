@@ -133,7 +133,7 @@ fn bench_tree(c: &mut Criterion) {
     }
     let uniforms: Vec<Vec2> = (0..queries.positions.len()).map(|_| rng.next_vec2()).collect();
     let mut i = 0usize;
-    let count = queries.positions.len();
+    let count = std::env::var("TREE_QUERIES").ok().and_then(|v| v.parse().ok()).unwrap_or(queries.positions.len());
     c.bench_function("tree_vertex_locate_distribution_sample_pdf", |b| {
         b.iter(|| {
             i = (i + 1) % count;

@@ -34,6 +34,7 @@ impl CoarseGrid {
     }
 
     /// Cells in the grid.
+    #[inline]
     pub(crate) fn len(&self) -> usize {
         self.cells.iter().product::<u32>() as usize
     }

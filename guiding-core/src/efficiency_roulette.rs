@@ -90,6 +90,33 @@ pub struct RouletteImage {
     pub path_cost: f32,
 }
 
+/// A path's [`RouletteImage`] reduced to the factors its continuations are weighed by,
+/// once per path ([`RouletteImage::scale`]): a vertex then multiplies, where the image's
+/// roots and quotient were otherwise taken at every vertex.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RouletteScale {
+    /// 1 / (I·√v).
+    per_root_moment: f32,
+    /// √C̄ / (I·√v), or a negative value where cost is left out.
+    per_root_moment_per_cost: f32,
+}
+
+impl RouletteImage {
+    /// The factors of this pixel and image, or `None` where it holds no usable pixel or
+    /// variance (the renderer's own roulette decides).
+    #[inline]
+    pub fn scale(&self) -> Option<RouletteScale> {
+        let usable = self.pixel > 0.0 && self.relative_variance > 0.0 && self.relative_variance.is_finite();
+        if !usable {
+            return None;
+        }
+        let per_root_moment = 1.0 / (self.pixel * libm::sqrtf(self.relative_variance));
+        let per_root_moment_per_cost =
+            if self.path_cost > 0.0 { libm::sqrtf(self.path_cost) * per_root_moment } else { -1.0 };
+        Some(RouletteScale { per_root_moment, per_root_moment_per_cost })
+    }
+}
+
 impl EfficiencyRoulette {
     /// A grid over `low..high` with `resolution` (1..=128) cells along the longest side
     /// and the other sides in proportion. Nothing is known until learned.
@@ -104,7 +131,8 @@ impl EfficiencyRoulette {
     /// roulette.rebuild_sampling();
     /// let image = RouletteImage { pixel: 1.0, relative_variance: 4.0, path_cost: 3.0 };
     /// // √(M = 0.25) / (1 · √4) = 0.25 at throughput 1.
-    /// assert!((roulette.continuations(cell, 1.0, &image).unwrap() - 0.25).abs() < 1e-6);
+    /// let scale = image.scale().unwrap();
+    /// assert!((roulette.continuations(cell, 1.0, scale).unwrap() - 0.25).abs() < 1e-6);
     /// ```
     pub fn new(low: Vec3, high: Vec3, resolution: u32) -> Result<Self, Error> {
         require((1..=128).contains(&resolution), "roulette_resolution", resolution as f64, "in 1..=128")?;
@@ -148,23 +176,22 @@ impl EfficiencyRoulette {
 
     /// How many continuations a path of throughput `throughput` (luminance) at a vertex
     /// in `cell` should have on average: T·√(M·C̄/C) / (I·√v) (see the module), clamped
-    /// to [[`MIN_SURVIVAL`], [`MAX_SPLIT`]]. Below 1 it is the survival probability of
-    /// Russian roulette; above 1 the path splits into that many copies on average (a
-    /// renderer that does not split takes 1). `None` where too little was learned there
-    /// or `image` holds no usable pixel or variance (the renderer's own roulette decides).
+    /// to [[`MIN_SURVIVAL`], [`MAX_SPLIT`]], `scale` the path's pixel and image
+    /// ([`RouletteImage::scale`]). Below 1 it is the survival probability of Russian
+    /// roulette; above 1 the path splits into that many copies on average (a renderer
+    /// that does not split takes 1). `None` where too little was learned there (the
+    /// renderer's own roulette decides).
     #[inline]
-    pub fn continuations(&self, cell: RouletteCell, throughput: f32, image: &RouletteImage) -> Option<f32> {
+    pub fn continuations(&self, cell: RouletteCell, throughput: f32, scale: RouletteScale) -> Option<f32> {
         let [root_moment, root_moment_per_cost] = self.roots[cell.0 as usize];
-        let usable = image.pixel > 0.0 && image.relative_variance > 0.0 && image.relative_variance.is_finite();
-        if root_moment < 0.0 || !usable || !throughput.is_finite() {
+        if root_moment < 0.0 || !throughput.is_finite() {
             return None;
         }
-        let root = if root_moment_per_cost >= 0.0 && image.path_cost > 0.0 {
-            root_moment_per_cost * libm::sqrtf(image.path_cost)
+        let q = if root_moment_per_cost >= 0.0 && scale.per_root_moment_per_cost >= 0.0 {
+            throughput * root_moment_per_cost * scale.per_root_moment_per_cost
         } else {
-            root_moment
+            throughput * root_moment * scale.per_root_moment
         };
-        let q = throughput * root / (image.pixel * libm::sqrtf(image.relative_variance));
         Some(if q.is_nan() { 1.0 } else { q.clamp(MIN_SURVIVAL, MAX_SPLIT) })
     }
 
@@ -243,9 +270,10 @@ mod tests {
         }
         roulette.rebuild_sampling();
         assert_eq!(roulette.pixel_estimate(cell, 0.0), None);
-        assert_eq!(roulette.continuations(cell, 1.0, &IMAGE), None);
+        let scale = IMAGE.scale().unwrap();
+        assert_eq!(roulette.continuations(cell, 1.0, scale), None);
         roulette.record(cell, 2.0, 1.0, None);
-        assert_eq!(roulette.continuations(cell, 1.0, &IMAGE), None, "learning alone changes nothing");
+        assert_eq!(roulette.continuations(cell, 1.0, scale), None, "learning alone changes nothing");
         roulette.rebuild_sampling();
         assert_eq!(roulette.pixel_estimate(cell, 0.5), Some(2.5));
         assert_eq!(roulette.cells_known(), 1);
@@ -260,7 +288,7 @@ mod tests {
             roulette.record(cell, 4.0, if i % 2 == 0 { 0.0 } else { 2.0 }, Some(2.0));
         }
         roulette.rebuild_sampling();
-        let q = |throughput: f32, image: RouletteImage| roulette.continuations(cell, throughput, &image);
+        let q = |throughput: f32, image: RouletteImage| roulette.continuations(cell, throughput, image.scale()?);
         let expected = 0.5 * 2f32.sqrt() / 2.0;
         assert!((q(0.5, IMAGE).unwrap() - expected).abs() < 1e-6);
         // A path costing 4× what going on from here costs: twice the continuations.

@@ -70,7 +70,9 @@ pub use bytes::reseal_checksum;
 pub use distribution::{
     DirectionSample, DirectionalDistribution, UniformHemisphere, UniformSphere, MIN_SAMPLED_COS_THETA,
 };
-pub use efficiency_roulette::{EfficiencyRoulette, RouletteCell, RouletteImage, MAX_SPLIT, MIN_SURVIVAL};
+pub use efficiency_roulette::{
+    EfficiencyRoulette, RouletteCell, RouletteImage, RouletteScale, MAX_SPLIT, MIN_SURVIVAL,
+};
 pub use error::{DecodeError, Error};
 pub use frame::Frame;
 pub use geometry::{square_to_triangle_barycentrics, Hit, Ray, Triangle};

@@ -51,6 +51,8 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         // What the path's pixel is expected to get (the image so far, else its first
         // vertex's cell).
         let mut pixel_estimate = pixel_estimate.filter(|p| *p > 0.0 && p.is_finite());
+        // What the frozen roulette weighs this path's continuations by, once its pixel is known.
+        let mut roulette_scale = None;
         scratch.clock =
             GuideClock { enabled: self.guide.is_some() && counters.paths % TIMED_PATH_STRIDE == 0, nanos: 0 };
         let clock = &mut scratch.clock;
@@ -223,12 +225,14 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                 // of the p they are recorded with. Efficiency-aware where it has learned the
                 // cell: at any depth, by what going on is worth against what it costs.
                 // A copy re-entering its vertex goes on: the path decided there once for all.
-                let learned = match (self.roulette.filter(|_| roulette_decides), roulette_cell, pixel_estimate) {
-                    (Some(roulette), Some(cell), Some(pixel)) if !reentering => {
-                        // The pixel as relMSE weighs it: √(I² + ε).
-                        let image =
-                            RouletteImage { pixel: (pixel * pixel + RELATIVE_EPSILON).sqrt(), ..self.roulette_image };
-                        roulette.continuations(cell, luminance(throughput), &image)
+                if let (true, None, Some(pixel)) = (roulette_decides, roulette_scale, pixel_estimate) {
+                    // The pixel as relMSE weighs it: √(I² + ε); once per path.
+                    let pixel = (pixel * pixel + RELATIVE_EPSILON).sqrt();
+                    roulette_scale = RouletteImage { pixel, ..self.roulette_image }.scale();
+                }
+                let learned = match (self.roulette.filter(|_| roulette_decides), roulette_cell, roulette_scale) {
+                    (Some(roulette), Some(cell), Some(scale)) if !reentering => {
+                        roulette.continuations(cell, luminance(throughput), scale)
                     }
                     _ => None,
                 };
