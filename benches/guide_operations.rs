@@ -135,7 +135,11 @@ fn bench_tree(c: &mut Criterion) {
     let mut i = 0usize;
     // TREE_QUERIES=N times the vertex over the first N queries alone: with 16 every node
     // it reads stays in L1, which tells the descents' latency from cache misses.
-    let count = std::env::var("TREE_QUERIES").ok().and_then(|v| v.parse().ok()).unwrap_or(queries.positions.len());
+    let count = std::env::var("TREE_QUERIES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(usize::MAX)
+        .clamp(1, queries.positions.len());
     c.bench_function("tree_vertex_locate_distribution_sample_pdf", |b| {
         b.iter(|| {
             i = (i + 1) % count;
