@@ -289,16 +289,16 @@ impl SpatialDirectionalTree {
         }
     }
 
-    /// What a record of `target` along `direction` (drawn with density `pdf`) in `region`
-    /// adds: its weight and its point in the leaf's square; or the outcome that leaves it
-    /// out (bad targets counted).
-    pub(super) fn checked_record(
+    /// What a record of `target` along unit `direction` (drawn with density `pdf`) in
+    /// `region` adds to its cell: target/pdf (target²/pdf under the second moment); or the
+    /// outcome that leaves it out (bad targets counted).
+    pub(super) fn checked_weight(
         &self,
         region: TreeRegion,
         direction: Vec3,
         target: f32,
         pdf: f32,
-    ) -> Result<(f32, Vec2), UpdateOutcome> {
+    ) -> Result<f32, UpdateOutcome> {
         let target = classify_target(target).inspect_err(|outcome| {
             let counter = match outcome {
                 UpdateOutcome::RejectedNegative => &self.rejected_negative,
@@ -307,13 +307,18 @@ impl SpatialDirectionalTree {
             atomic_f32::increment_saturating(counter);
         })?;
         let unit = direction.is_finite() && (direction.length_squared() - 1.0).abs() < 1e-3;
-        let leaf = self.leaves.get(region.leaf as usize).ok_or(UpdateOutcome::OutsideDomain)?;
-        if !(unit && pdf.is_finite() && pdf > 0.0) {
+        if region.leaf as usize >= self.leaves.len() || !(unit && pdf.is_finite() && pdf > 0.0) {
             return Err(UpdateOutcome::OutsideDomain);
         }
         let moment = if self.settings.second_moment { target * target } else { target };
-        let weight = (moment / pdf).min(f32::MAX);
-        Ok((weight, direction_to_square(to_axis_frame(direction, leaf.axis))))
+        Ok((moment / pdf).min(f32::MAX))
+    }
+
+    /// The cell of leaf `leaf` (which exists) that `direction` falls in.
+    #[inline]
+    pub(super) fn leaf_cell_of(&self, leaf: usize, direction: Vec3) -> usize {
+        let SpatialLeaf { root, axis, .. } = self.leaves[leaf];
+        quadtree::leaf_cell(&self.quad, root, direction_to_square(to_axis_frame(direction, axis)))
     }
 
     /// Splits every leaf whose records (over all epochs, halved at each split) pass the
@@ -482,12 +487,11 @@ impl Guide for SpatialDirectionalTree {
     }
 
     fn update_sampled(&self, region: TreeRegion, direction: Vec3, target: f32, pdf: f32) -> UpdateOutcome {
-        let (weight, p) = match self.checked_record(region, direction, target, pdf) {
-            Ok(record) => record,
+        let weight = match self.checked_weight(region, direction, target, pdf) {
+            Ok(weight) => weight,
             Err(outcome) => return outcome,
         };
-        let root = self.leaves[region.leaf as usize].root;
-        let cell = quadtree::leaf_cell(&self.quad, root, p);
+        let cell = self.leaf_cell_of(region.leaf as usize, direction);
         quadtree::add_record(&self.sums, cell, weight);
         self.leaf_counts[region.leaf as usize].add(region.upper_half as usize, region.normal);
         UpdateOutcome::Accepted
@@ -509,9 +513,10 @@ impl Guide for SpatialDirectionalTree {
         if !TreeRecords::can_name(region.leaf) {
             return self.update_sampled(region, direction, target, pdf);
         }
-        match self.checked_record(region, direction, target, pdf) {
-            Ok((weight, square)) => {
-                records.push(self.epoch, region, square, weight);
+        match self.checked_weight(region, direction, target, pdf) {
+            Ok(weight) => {
+                let axis = self.leaves[region.leaf as usize].axis;
+                records.push(self.epoch, region, direction_to_square(to_axis_frame(direction, axis)), weight);
                 UpdateOutcome::Accepted
             }
             Err(outcome) => outcome,
