@@ -10,7 +10,7 @@ use glam::{Vec2, Vec3};
 
 use super::distribution::ALIGNED_COS;
 use super::quadtree::{self, QuadNode};
-use super::square::{direction_to_square, from_axis_frame, square_to_direction, to_axis_frame};
+use super::square::{axis_square, from_axis_frame, square_to_direction};
 
 /// Cells per side of the quadtree a leaf gets when its axis changes (depth 4: 85 nodes),
 /// read from its old tree; the next refit splits and merges it as usual.
@@ -150,7 +150,7 @@ pub(crate) fn rotated_cells(nodes: &[QuadNode], root: u32, old_axis: u32, axis: 
                 let offset = Vec2::new((j % POINTS) as f32 + 0.5, (j / POINTS) as f32 + 0.5) / POINTS as f32;
                 let p = (Vec2::new(x as f32, y as f32) + offset) / side as f32;
                 let world = from_axis_frame(square_to_direction(p), axis);
-                let old = direction_to_square(to_axis_frame(world, old_axis));
+                let old = axis_square(world, old_axis);
                 sum += quadtree::square_density(nodes, root, old) as f64;
             }
             sum

@@ -9,7 +9,7 @@ use core::f32::consts::PI;
 use glam::{Vec2, Vec3};
 
 use super::quadtree::{self, QuadNode};
-use super::square::{direction_to_square, from_axis_frame, square_to_direction, to_axis_frame, SQUARE_TO_SOLID_ANGLE};
+use super::square::{axis_square, from_axis_frame, square_to_direction, SQUARE_TO_SOLID_ANGLE};
 use crate::distribution::{DirectionSample, DirectionalDistribution, MIN_SAMPLED_COS_THETA};
 use crate::frame::Frame;
 
@@ -108,7 +108,7 @@ impl<'a> TreeDistribution<'a> {
     /// The quadtree's own density at `direction`, per steradian (on the whole sphere).
     #[inline]
     fn tree_pdf(&self, direction: Vec3) -> f32 {
-        let p = direction_to_square(to_axis_frame(direction, self.axis));
+        let p = axis_square(direction, self.axis);
         quadtree::square_density(self.nodes, self.root, p) / SQUARE_TO_SOLID_ANGLE
     }
 
@@ -138,7 +138,7 @@ impl<'a> TreeDistribution<'a> {
     fn tree_share_pdf(&self, direction: Vec3) -> f32 {
         match self.mode {
             HemisphereMode::Half { high, inverse_mass } => {
-                let p = direction_to_square(to_axis_frame(direction, self.axis));
+                let p = axis_square(direction, self.axis);
                 if (p.x >= 0.5) != high {
                     return 0.0;
                 }

@@ -14,7 +14,7 @@ use super::quadtree::{self, EpochBlend, QuadNode, RefitRule, NODE_BYTES};
 use super::records::TreeRecords;
 use super::settings::SpatialDirectionalTreeSettings;
 use super::spatial::{locate_leaf, split_leaf, Parent, SpatialNode, LEAF, SPATIAL_NODE_BYTES};
-use super::square::{direction_to_square, to_axis_frame, SQUARE_TO_SOLID_ANGLE};
+use super::square::{axis_square, SQUARE_TO_SOLID_ANGLE};
 use crate::atomic_f32;
 use crate::distribution::MIN_SAMPLED_COS_THETA;
 use crate::error::Error;
@@ -223,7 +223,7 @@ impl SpatialDirectionalTree {
     /// root mean square with the settings' `second_moment`).
     pub fn q(&self, region: TreeRegion, direction: Vec3) -> f32 {
         let Some(leaf) = self.leaves.get(region.leaf as usize) else { return 0.0 };
-        let p = direction_to_square(to_axis_frame(direction, leaf.axis));
+        let p = axis_square(direction, leaf.axis);
         leaf.flux * quadtree::square_density(&self.quad, leaf.root, p) / SQUARE_TO_SOLID_ANGLE
     }
 
@@ -318,7 +318,7 @@ impl SpatialDirectionalTree {
     #[inline]
     pub(super) fn leaf_cell_of(&self, leaf: usize, direction: Vec3) -> usize {
         let SpatialLeaf { root, axis, .. } = self.leaves[leaf];
-        quadtree::leaf_cell(&self.quad, root, direction_to_square(to_axis_frame(direction, axis)))
+        quadtree::leaf_cell(&self.quad, root, axis_square(direction, axis))
     }
 
     /// Splits every leaf whose records (over all epochs, halved at each split) pass the
@@ -516,7 +516,7 @@ impl Guide for SpatialDirectionalTree {
         match self.checked_weight(region, direction, target, pdf) {
             Ok(weight) => {
                 let axis = self.leaves[region.leaf as usize].axis;
-                records.push(self.epoch, region, direction_to_square(to_axis_frame(direction, axis)), weight);
+                records.push(self.epoch, region, axis_square(direction, axis), weight);
                 UpdateOutcome::Accepted
             }
             Err(outcome) => outcome,

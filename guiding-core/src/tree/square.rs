@@ -66,6 +66,13 @@ pub(crate) fn to_axis_frame(d: Vec3, axis: u32) -> Vec3 {
     }
 }
 
+/// The square point of world direction `d` in the square built around world `axis`: the
+/// one map from a direction to a leaf's cells that sampling's pdf, records and Q share.
+#[inline]
+pub(crate) fn axis_square(d: Vec3, axis: u32) -> Vec2 {
+    direction_to_square(to_axis_frame(d, axis))
+}
+
 /// The world direction of `local`, given in the frame of [`to_axis_frame`].
 #[inline]
 pub(crate) fn from_axis_frame(local: Vec3, axis: u32) -> Vec3 {
