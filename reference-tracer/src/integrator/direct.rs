@@ -4,7 +4,7 @@
 
 use glam::Vec3;
 use guiding_core::environment::{EnvCell, EnvSample};
-use guiding_core::{DirectionalDistribution, GateCell, Guide, Hit, Intersector, LightCell, Pcg32, Ray};
+use guiding_core::{DirectionalDistribution, Guide, Hit, Intersector, LightCell, Pcg32, Ray};
 
 use super::counters::{PathCounters, GATE_PATH_STRIDE};
 use super::method::LightSelection;
@@ -102,7 +102,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         let (u_choice, u_select, u) = (rng.next_f32(), rng.next_f32(), rng.next_vec2());
         // The gate may leave this vertex's light to the scattered direction; the number is
         // drawn only where it can, so ungated paths keep their random streams.
-        let gate = self.next_event_probability(cells.gate);
+        let gate = cells.probability;
         if gate < 1.0 && rng.next_f32() >= gate {
             return nothing;
         }
@@ -201,15 +201,18 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         DirectLight { radiance, sample }
     }
 
-    /// The probability that next-event estimation runs at `point`: the light guide's
-    /// gate where it has one, else 1. Emission found by a scattered direction is weighed
-    /// by MIS against this times the light pdf, so a vertex whose shadow ray the gate
-    /// skipped leaves its light to that direction, unbiased.
-    pub(super) fn next_event_probability(&self, cell: Option<GateCell>) -> f32 {
-        match (self.gate, cell) {
-            (Some(gate), Some(cell)) => gate.probability(cell),
+    /// A vertex's cells at `point` in the light guide and the gate, with the probability
+    /// that next-event estimation runs there: the gate's where it has one, else 1.
+    /// Emission found by a scattered direction is weighed by MIS against this times the
+    /// light pdf, so a vertex whose shadow ray the gate skipped leaves its light to that
+    /// direction, unbiased.
+    pub(super) fn nee_cells(&self, point: Vec3) -> NeeCells {
+        let gate = self.gate.and_then(|gate| gate.locate(point));
+        let probability = match (self.gate, gate) {
+            (Some(table), Some(cell)) => table.probability(cell),
             _ => 1.0,
-        }
+        };
+        NeeCells { light: self.light_guide.and_then(|guide| guide.locate(point)), gate, probability }
     }
 
     /// Teaches one shadow ray from a vertex in `cells` to `light`: the light guide's V

@@ -111,9 +111,26 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                 if let (0, None, Some(roulette), Some(cell)) = (depth, pixel_estimate, self.roulette, roulette_cell) {
                     pixel_estimate = roulette.pixel_estimate(cell, luminance(radiance));
                 }
+                // What the frozen roulette learned here, read before the guides and the
+                // shadow ray (the throughput it weighs is already final): the vertex's
+                // table reads below are issued together, their cache misses overlap.
+                if let (true, None, Some(pixel)) = (roulette_decides, roulette_scale, pixel_estimate) {
+                    // The pixel as relMSE weighs it: √(I² + ε); once per path.
+                    let pixel = (pixel * pixel + RELATIVE_EPSILON).sqrt();
+                    roulette_scale = RouletteImage { pixel, ..self.roulette_image }.scale();
+                }
+                let learned = match (self.roulette.filter(|_| roulette_decides), roulette_cell, roulette_scale) {
+                    (Some(roulette), Some(cell), Some(scale)) if !reentering => {
+                        roulette.continuations(cell, luminance(throughput), scale)
+                    }
+                    _ => None,
+                };
                 let before_light_sample = luminance(radiance);
                 let normal = shading.frame.normal;
                 let delta = material.is_delta();
+                // Next-event estimation's cells, which it and the MIS weight of emission
+                // found from here share.
+                let nee_cells = if nee && !delta { self.nee_cells(point) } else { NeeCells::default() };
                 // The guide's share here: fixed, or learned per region (where it learned 0 the
                 // guide is not even located, except to keep learning).
                 let guides_here = self.guide.is_some() && !delta && depth < settings.guide_depth;
@@ -128,6 +145,13 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                 } else {
                     1.0
                 };
+                // The focal guide's share of the scattering here (0 where it has no boxes, and
+                // left out altogether in frozen passes where no region aims at them).
+                let focal = self.focal.filter(|f| !delta && if learning { !f.boxes().is_empty() } else { f.aims() });
+                let focal_share =
+                    guidable * focal.map_or(0.0, |f| f.selection_probability(point).min(settings.focal_probability));
+                // Learning measures the boxes' share from every direction, sampled by them or not.
+                let focal = focal.filter(|_| focal_share > 0.0 || learning);
                 let guide_share = guidable
                     * match self.guide_shares {
                         _ if !guides_here => 0.0,
@@ -169,23 +193,6 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                     (Some(guide), Some(region)) => Some(clock.time(|| guide.distribution(region))),
                     _ => None,
                 };
-                // The focal guide's share of the scattering here (0 where it has no boxes, and
-                // left out altogether in frozen passes where no region aims at them).
-                let focal = self.focal.filter(|f| !delta && if learning { !f.boxes().is_empty() } else { f.aims() });
-                let focal_share =
-                    guidable * focal.map_or(0.0, |f| f.selection_probability(point).min(settings.focal_probability));
-                // Learning measures the boxes' share from every direction, sampled by them or not.
-                let focal = focal.filter(|_| focal_share > 0.0 || learning);
-                // Next-event estimation, and the cells it and the MIS weight of emission found
-                // from here share.
-                let nee_cells = if nee && !delta {
-                    NeeCells {
-                        light: self.light_guide.and_then(|guide| guide.locate(point)),
-                        gate: self.gate.and_then(|gate| gate.locate(point)),
-                    }
-                } else {
-                    NeeCells::default()
-                };
                 if nee && !delta && !reentering {
                     let direct = self.direct_light(
                         &surface,
@@ -225,17 +232,6 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                 // of the p they are recorded with. Efficiency-aware where it has learned the
                 // cell: at any depth, by what going on is worth against what it costs.
                 // A copy re-entering its vertex goes on: the path decided there once for all.
-                if let (true, None, Some(pixel)) = (roulette_decides, roulette_scale, pixel_estimate) {
-                    // The pixel as relMSE weighs it: √(I² + ε); once per path.
-                    let pixel = (pixel * pixel + RELATIVE_EPSILON).sqrt();
-                    roulette_scale = RouletteImage { pixel, ..self.roulette_image }.scale();
-                }
-                let learned = match (self.roulette.filter(|_| roulette_decides), roulette_cell, roulette_scale) {
-                    (Some(roulette), Some(cell), Some(scale)) if !reentering => {
-                        roulette.continuations(cell, luminance(throughput), scale)
-                    }
-                    _ => None,
-                };
                 let plays = !reentering && learned.map_or(depth + 1 >= settings.rr_depth, |q| q < 1.0);
                 let mut survival = 1.0;
                 if plays {
@@ -434,7 +430,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
     ) -> Vec3 {
         let (weight, light_pdf) = match previous {
             Some((from, pdf, false, cells)) if self.estimates_nee() => {
-                let light_pdf = self.next_event_probability(cells.gate) * light_pdf(from, cells);
+                let light_pdf = cells.probability * light_pdf(from, cells);
                 (power_heuristic(pdf, light_pdf), light_pdf)
             }
             _ => (1.0, 0.0),

@@ -209,12 +209,21 @@ pub(super) struct SurfaceInteraction {
     pub(super) shading: ShadingFrame,
 }
 
-/// A vertex's cells in the light guide and the next-event gate: next-event estimation
-/// there, and the MIS weight of emission found from there, read both.
-#[derive(Clone, Copy, Debug, Default)]
+/// A vertex's cells in the light guide and the next-event gate, and the gate's
+/// probability there: next-event estimation there, and the MIS weight of emission found
+/// from there, read them.
+#[derive(Clone, Copy, Debug)]
 pub(super) struct NeeCells {
     pub(super) light: Option<LightCell>,
     pub(super) gate: Option<GateCell>,
+    /// The probability that next-event estimation runs here (1 without a gate).
+    pub(super) probability: f32,
+}
+
+impl Default for NeeCells {
+    fn default() -> Self {
+        Self { light: None, gate: None, probability: 1.0 }
+    }
 }
 
 /// The density MIS with next-event estimation weighs a scattered direction by (unless
