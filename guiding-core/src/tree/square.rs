@@ -16,7 +16,7 @@ pub(crate) const SQUARE_TO_SOLID_ANGLE: f32 = 4.0 * PI;
 
 /// The square point of unit direction `d`.
 #[inline]
-pub(crate) fn direction_to_square(d: Vec3) -> Vec2 {
+fn direction_to_square(d: Vec3) -> Vec2 {
     let u = (d.z + 1.0) * 0.5;
     let v = fast_atan2(d.y, d.x) * (0.5 / PI) + 0.5;
     Vec2::new(u.clamp(0.0, ONE_BELOW), v.clamp(0.0, ONE_BELOW))
@@ -58,7 +58,7 @@ pub(crate) fn sin_cos_pi(x: f32) -> (f32, f32) {
 /// `d` in the frame whose polar (z) axis is world axis `axis` (0, 1 or 2 for x, y, z):
 /// the coordinates turned cyclically, so the frame stays right-handed.
 #[inline]
-pub(crate) fn to_axis_frame(d: Vec3, axis: u32) -> Vec3 {
+fn to_axis_frame(d: Vec3, axis: u32) -> Vec3 {
     match axis {
         0 => Vec3::new(d.y, d.z, d.x),
         1 => Vec3::new(d.z, d.x, d.y),

@@ -207,12 +207,10 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
     /// light pdf, so a vertex whose shadow ray the gate skipped leaves its light to that
     /// direction, unbiased.
     pub(super) fn nee_cells(&self, point: Vec3) -> NeeCells {
-        let gate = self.gate.and_then(|gate| gate.locate(point));
-        let probability = match (self.gate, gate) {
-            (Some(table), Some(cell)) => table.probability(cell),
-            _ => 1.0,
-        };
-        NeeCells { light: self.light_guide.and_then(|guide| guide.locate(point)), gate, probability }
+        let gate = self.gate.and_then(|table| Some((table, table.locate(point)?)));
+        let probability = gate.map_or(1.0, |(table, cell)| table.probability(cell));
+        let light = self.light_guide.and_then(|guide| guide.locate(point));
+        NeeCells { light, gate: gate.map(|(_, cell)| cell), probability }
     }
 
     /// Teaches one shadow ray from a vertex in `cells` to `light`: the light guide's V
