@@ -9,6 +9,7 @@ use std::sync::atomic::{AtomicU32, Ordering};
 use guiding_core::{GaussianMixture, Guide, HemisphereGrid, HemisphereMapping, IrradianceVolume, LearningRate};
 use wgpu::util::DeviceExt;
 
+use super::params::{Params, GUIDE_HEMISPHERE, GUIDE_MIXTURE, GUIDE_VOLUME};
 use crate::directional_guide::DirectionalGuide;
 
 /// The structure the GPU guides with.
@@ -51,6 +52,50 @@ impl<'a> From<&'a HemisphereGrid> for GpuGuide<'a> {
 impl<'a> From<&'a IrradianceVolume> for GpuGuide<'a> {
     fn from(volume: &'a IrradianceVolume) -> Self {
         GpuGuide::Volume(volume)
+    }
+}
+
+impl GpuGuide<'_> {
+    /// Writes what the shader needs to know of the guide's shape and settings into
+    /// `params`: its kind, region and patch counts, the lookup of its regions, its
+    /// learning rate and sampling mix.
+    pub(super) fn write_params(self, params: &mut Params) {
+        match self {
+            GpuGuide::Hemisphere(grid) => {
+                let s = grid.settings();
+                let lookup = grid.lookup();
+                params.guide_kind = GUIDE_HEMISPHERE;
+                params.guide_regions = grid.probe_count() as u32;
+                params.guide_patches = grid.patch_count() as u32;
+                [params.patch_rows, params.patch_columns] = s.layout.resolution;
+                params.lookup_buckets = (lookup.bucket_starts().len() - 1) as u32;
+                params.search_rings = lookup.max_rings();
+                params.lookup_origin = lookup.origin().to_array();
+                params.lookup_cell_size = lookup.cell_size();
+                params.q_floor = s.q_floor;
+                params.max_normal_cos = s.max_normal_angle_deg.to_radians().cos();
+                params.set_learning_rate(s.update_rule.learning_rate);
+                params.uniform_mix = s.uniform_mix;
+            }
+            GpuGuide::Volume(volume) => {
+                let s = volume.settings();
+                params.guide_regions = volume.leaf_count() as u32;
+                params.guide_patches = volume.patch_count() as u32;
+                [params.patch_rows, params.patch_columns] = s.layout.resolution;
+                params.q_floor = s.q_floor;
+                params.set_learning_rate(s.update_rule.learning_rate);
+                params.set_cell_grid(GUIDE_VOLUME, volume.resolution(), volume.grid_transform());
+                params.uniform_mix = s.uniform_mix;
+            }
+            GpuGuide::Mixture(mixture) => {
+                let s = mixture.settings();
+                params.guide_regions = mixture.region_count() as u32;
+                params.guide_patches = s.lobes as u32;
+                params.regions_per_cell = s.regions_per_cell() as u32;
+                params.set_cell_grid(GUIDE_MIXTURE, mixture.resolution(), mixture.grid_transform());
+                params.uniform_mix = s.uniform_mix;
+            }
+        }
     }
 }
 

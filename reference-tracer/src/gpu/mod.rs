@@ -66,7 +66,7 @@ pub use backend::GpuBackend;
 pub use context::GpuContext;
 use guide_buffers::GuideBuffers;
 pub use guide_buffers::{store_learned, GpuGuide};
-use params::{method_code, Params, GUIDE_HEMISPHERE, GUIDE_MIXTURE, GUIDE_VOLUME};
+use params::{method_code, Params};
 use scene_buffers::SceneBuffers;
 
 use crate::environment::Sky;
@@ -182,12 +182,6 @@ impl GpuTracer {
             right: right.to_array(),
             guide_probability: settings.guide_probability,
             up: up.to_array(),
-            uniform_mix: match guide {
-                Some(GpuGuide::Hemisphere(grid)) => grid.settings().uniform_mix,
-                Some(GpuGuide::Volume(volume)) => volume.settings().uniform_mix,
-                Some(GpuGuide::Mixture(mixture)) => mixture.settings().uniform_mix,
-                None => 0.0,
-            },
             environment_radiance: environment.to_array(),
             environment_choice,
             guide_present: guide.is_some() as u32,
@@ -195,36 +189,8 @@ impl GpuTracer {
             ..Default::default()
         };
         let mut params = params;
-        if let Some(GpuGuide::Volume(volume)) = guide {
-            let s = volume.settings();
-            params.guide_regions = volume.leaf_count() as u32;
-            params.guide_patches = volume.patch_count() as u32;
-            [params.patch_rows, params.patch_columns] = s.layout.resolution;
-            params.q_floor = s.q_floor;
-            params.set_learning_rate(s.update_rule.learning_rate);
-            params.set_cell_grid(GUIDE_VOLUME, volume.resolution(), volume.grid_transform());
-        }
-        if let Some(GpuGuide::Mixture(mixture)) = guide {
-            let s = mixture.settings();
-            params.guide_regions = mixture.region_count() as u32;
-            params.guide_patches = s.lobes as u32;
-            params.regions_per_cell = s.regions_per_cell() as u32;
-            params.set_cell_grid(GUIDE_MIXTURE, mixture.resolution(), mixture.grid_transform());
-        }
-        if let Some(GpuGuide::Hemisphere(grid)) = guide {
-            let s = grid.settings();
-            let lookup = grid.lookup();
-            params.guide_kind = GUIDE_HEMISPHERE;
-            params.guide_regions = grid.probe_count() as u32;
-            params.guide_patches = grid.patch_count() as u32;
-            [params.patch_rows, params.patch_columns] = s.layout.resolution;
-            params.lookup_buckets = (lookup.bucket_starts().len() - 1) as u32;
-            params.search_rings = lookup.max_rings();
-            params.lookup_origin = lookup.origin().to_array();
-            params.lookup_cell_size = lookup.cell_size();
-            params.q_floor = s.q_floor;
-            params.max_normal_cos = s.max_normal_angle_deg.to_radians().cos();
-            params.set_learning_rate(s.update_rule.learning_rate);
+        if let Some(guide) = guide {
+            guide.write_params(&mut params);
         }
         let params_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("params"),
