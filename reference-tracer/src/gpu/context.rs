@@ -74,6 +74,21 @@ impl GpuContext {
         Err(format!("GPU error: {message}"))
     }
 
+    /// Copies a storage buffer to the host, as words.
+    pub fn copy_to_host(&self, buffer: &wgpu::Buffer) -> Result<Vec<u32>, String> {
+        let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("guide readback"),
+            size: buffer.size(),
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut encoder =
+            self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("readback") });
+        encoder.copy_buffer_to_buffer(buffer, 0, &staging, 0, buffer.size());
+        self.queue.submit([encoder.finish()]);
+        self.read(&staging)
+    }
+
     /// Waits for the queue, then copies a mappable buffer's contents out.
     pub fn read<T: Pod>(&self, buffer: &wgpu::Buffer) -> Result<Vec<T>, String> {
         let (sender, receiver) = std::sync::mpsc::channel();

@@ -2,7 +2,10 @@
 //! flat arrays uploaded as they are (f32 positions and normals, Q as f32 bits, visit
 //! counts, CDF, Lambertian sums or spherical-harmonic coefficients, the hash grid's
 //! bucket table or the octree's nodes), or a [`GaussianMixture`]'s lobe table and batch
-//! words; updated in place by the shader, and read back into the same structure.
+//! words; updated in place by the shader, and read back into the same structure. What
+//! differs between the structures on the GPU's host side lives here: their shape in the
+//! pass parameters, the host's copy of a guide it refits between passes
+//! ([`HostGuide`]), and the download.
 
 use std::sync::atomic::{AtomicU32, Ordering};
 
@@ -10,6 +13,7 @@ use guiding_core::{GaussianMixture, Guide, HemisphereGrid, HemisphereMapping, Ir
 use wgpu::util::DeviceExt;
 
 use super::params::{Params, GUIDE_HEMISPHERE, GUIDE_MIXTURE, GUIDE_VOLUME};
+use super::GpuContext;
 use crate::directional_guide::DirectionalGuide;
 
 /// The structure the GPU guides with.
@@ -96,6 +100,80 @@ impl GpuGuide<'_> {
                 params.uniform_mix = s.uniform_mix;
             }
         }
+    }
+}
+
+impl GpuGuide<'_> {
+    /// The host's copy of the guide where the host refits it between passes (a volume
+    /// splits its leaves, a mixture takes its M-step); `None` for the grid, whose CDFs
+    /// the GPU rebuilds.
+    pub(super) fn host_copy(self) -> Option<HostGuide> {
+        match self {
+            GpuGuide::Hemisphere(_) => None,
+            GpuGuide::Volume(volume) => Some(HostGuide::Volume(volume.clone())),
+            GpuGuide::Mixture(mixture) => Some(HostGuide::Mixture(mixture.clone())),
+        }
+    }
+}
+
+/// The host's copy of an uploaded guide that it refits between learning passes, and
+/// downloads from.
+pub enum HostGuide {
+    /// Leaves split on the host, the grown tree uploaded.
+    Volume(IrradianceVolume),
+    /// guiding-core's M-step on the host, the refitted lobes uploaded.
+    Mixture(GaussianMixture),
+}
+
+impl HostGuide {
+    /// Whether the GPU's rebuild kernel builds this guide's CDFs after a learning pass
+    /// (the mixture's sampling is refitted by the host alone).
+    pub(super) fn rebuilt_on_gpu(&self) -> bool {
+        matches!(self, HostGuide::Volume(_))
+    }
+
+    /// The buffer the host reads after every learning pass: a volume's leaf visit
+    /// counts, a mixture's batch words.
+    pub(super) fn pass_readback<'b>(&self, buffers: &'b GuideBuffers) -> &'b wgpu::Buffer {
+        match self {
+            HostGuide::Volume(_) => &buffers.region_visits,
+            HostGuide::Mixture(_) => &buffers.q,
+        }
+    }
+
+    /// Between passes, from the pass's `words` ([`pass_readback`](Self::pass_readback)):
+    /// a volume takes its leaf visit counts and, where its rule says leaves split, its
+    /// tables too, splits on the host and uploads the grown tree, tables and CDFs; a
+    /// mixture takes its batch sums, fits, and uploads its lobes and an empty batch.
+    pub(super) fn refit(
+        &mut self,
+        words: &[u32],
+        context: &GpuContext,
+        buffers: &GuideBuffers,
+        params: &mut Params,
+    ) -> Result<(), String> {
+        match self {
+            HostGuide::Volume(volume) => {
+                let leaves = volume.leaf_count();
+                store(volume.leaf_visit_counts(), &words[..leaves]);
+                if !volume.splits_pending() {
+                    return Ok(());
+                }
+                let q = context.copy_to_host(&buffers.q)?;
+                let patch_visits = context.copy_to_host(&buffers.patch_visits)?;
+                let entries = leaves * volume.patch_count();
+                store_volume_tables(volume, &q[..entries], &patch_visits[..entries], &words[..leaves]);
+                volume.rebuild_sampling();
+                buffers.write_volume(&context.queue, volume);
+                params.guide_regions = volume.leaf_count() as u32;
+            }
+            HostGuide::Mixture(mixture) => {
+                store(mixture.batch_words(), words);
+                mixture.rebuild_sampling();
+                buffers.write_mixture(&context.queue, mixture);
+            }
+        }
+        Ok(())
     }
 }
 
@@ -276,6 +354,48 @@ impl GuideBuffers {
         let a = Arrays::of_mixture(mixture);
         queue.write_buffer(&self.cdf, 0, bytemuck::cast_slice(&a.cdf));
         queue.write_buffer(&self.q, 0, bytemuck::cast_slice(&a.q));
+    }
+
+    /// Reads what `guide` (the guide uploaded, with `host` its host copy and `params`
+    /// the pass parameters) learned back into it: a grid takes the learned Q and visit
+    /// counts ([`store_learned`]); a volume becomes the host's copy as it learned and
+    /// split, with the tables read back; a mixture becomes the host's copy (every pass's
+    /// batch already absorbed).
+    pub(super) fn download(
+        &self,
+        context: &GpuContext,
+        host: Option<&HostGuide>,
+        params: &Params,
+        guide: &mut DirectionalGuide,
+    ) -> Result<(), String> {
+        match (guide, host) {
+            (DirectionalGuide::Hemisphere(grid), None) => {
+                if params.guide_regions as usize != grid.probe_count()
+                    || params.guide_patches as usize != grid.patch_count()
+                {
+                    return Err("the grid does not match the one uploaded".into());
+                }
+                let q = context.copy_to_host(&self.q)?;
+                let patch_visits = context.copy_to_host(&self.patch_visits)?;
+                let probe_visits = context.copy_to_host(&self.region_visits)?;
+                store_learned(grid, &q, &patch_visits, &probe_visits);
+            }
+            (DirectionalGuide::Volume(volume), Some(HostGuide::Volume(learned))) => {
+                let mut learned = learned.clone();
+                let leaves = learned.leaf_count();
+                let entries = leaves * learned.patch_count();
+                let q = context.copy_to_host(&self.q)?;
+                let patch_visits = context.copy_to_host(&self.patch_visits)?;
+                let leaf_visits = context.copy_to_host(&self.region_visits)?;
+                store_volume_tables(&learned, &q[..entries], &patch_visits[..entries], &leaf_visits[..leaves]);
+                learned.rebuild_sampling();
+                *volume = learned;
+            }
+            (DirectionalGuide::Mixture(mixture), Some(HostGuide::Mixture(learned))) => mixture.clone_from(learned),
+            (DirectionalGuide::Tree(_), _) => return Err("the GPU tracer has no tree guide yet".into()),
+            (guide, _) => return Err(format!("the {} guide is not the one uploaded", guide.structure().name())),
+        }
+        Ok(())
     }
 }
 

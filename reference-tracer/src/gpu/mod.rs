@@ -1,6 +1,6 @@
 //! The GPU tracer (feature `gpu`): the same estimators as the CPU tracer as one wgpu
-//! compute shader (the files of `shader/`, joined by `shader.rs`), on any Vulkan, Metal or DX12 adapter — in CI, Mesa's software
-//! rasteriser lavapipe.
+//! compute shader (the files of `shader/`, joined by `shader.rs`), on any Vulkan, Metal
+//! or DX12 adapter — in CI, Mesa's software rasteriser lavapipe.
 //!
 //! Design: a megakernel — one invocation traces one pixel's whole path per pass, in
 //! 8 × 8 workgroups. A wavefront design (a kernel per bounce, queues of rays between)
@@ -10,32 +10,34 @@
 //!
 //! Scene upload (once): obvhs's BVH2 flattened by [`guiding_obvhs::flat_bvh2`] (32-byte
 //! nodes, triangles in leaf order), per-triangle geometric normal and material, the
-//! materials, the area lights with their power CDF (guiding-core's [`cdf`](guiding_core::cdf)
-//! layout, unchanged). Each pass writes its image; the host adds it into the f64 film
-//! and takes the pass mean, as the CPU renderer does.
+//! materials, the area lights with their power CDF (guiding-core's
+//! [`cdf`](guiding_core::cdf) layout, unchanged). Each pass writes its image; the host
+//! adds it into the f64 film and takes the pass mean, as the CPU renderer does.
 //!
-//! Guiding: a [`HemisphereGrid`](guiding_core::HemisphereGrid)'s flat arrays are uploaded as they are (positions and
-//! normals as f32 triples, Q as f32 bits, visits, CDFs, Lambertian sums, the hash grid's
-//! bucket table); the shader locates the nearest probe with a similar normal, samples
-//! ∝ Q by CDF inversion, evaluates the mixture pdf for MIS, and learns by Eq. (1)/(2)
-//! with compare-exchange float updates on `atomic<u32>`. A second kernel rebuilds the
-//! CDFs of the probes that learned between passes. After the render Q and the visit
-//! counts are read back into the same grid ([`store_learned`]), which the CPU tracer
-//! can then use or save.
+//! Guiding: a [`HemisphereGrid`](guiding_core::HemisphereGrid)'s flat arrays are uploaded
+//! as they are (positions and normals as f32 triples, Q as f32 bits, visits, CDFs,
+//! Lambertian sums, the hash grid's bucket table); the shader locates the nearest probe
+//! with a similar normal, samples ∝ Q by CDF inversion, evaluates the mixture pdf for
+//! MIS, and learns by Eq. (1)/(2) with compare-exchange float updates on `atomic<u32>`. A
+//! second kernel rebuilds the CDFs of the probes that learned between passes. After the
+//! render Q and the visit counts are read back into the same grid ([`store_learned`]),
+//! which the CPU tracer can then use or save.
 //!
-//! An [`IrradianceVolume`] follows the same pattern: its octree nodes, Q, visits, CDFs
-//! and spherical-harmonic coefficients are uploaded as they are (with room for every
-//! leaf its budget allows); the shader walks the tree to the leaf, samples the sphere
-//! folded onto the normal's hemisphere, takes the Lambertian integral from the
-//! harmonics, and learns by Eq. (1); the rebuild kernel projects each changed leaf
-//! again. Splitting busy leaves stays on the host: after each pass the leaf visit
-//! counts come back (a few KiB), and only when guiding-core says a split is due
-//! ([`IrradianceVolume::splits_pending`]) do the tables come home, split, and go back.
+//! An [`IrradianceVolume`](guiding_core::IrradianceVolume) follows the same pattern: its
+//! octree nodes, Q, visits, CDFs and spherical-harmonic coefficients are uploaded as they
+//! are (with room for every leaf its budget allows); the shader walks the tree to the
+//! leaf, samples the sphere folded onto the normal's hemisphere, takes the Lambertian
+//! integral from the harmonics, and learns by Eq. (1); the rebuild kernel projects each
+//! changed leaf again. Splitting busy leaves stays on the host: after each pass the leaf
+//! visit counts come back (a few KiB), and only when guiding-core says a split is due
+//! ([`IrradianceVolume::splits_pending`](guiding_core::IrradianceVolume::splits_pending))
+//! do the tables come home, split, and go back.
 //!
-//! A [`GaussianMixture`] runs its E-step on the GPU: its lobe table (mean, κ, C(κ),
-//! weight per lobe; guiding-core's [`GaussianMixture::lobe_table`]) and its batch words
-//! are uploaded; the shader finds the region by cell and normal side, samples and
-//! evaluates the mixture exactly, and adds each sample's responsibilities into the
+//! A [`GaussianMixture`](guiding_core::GaussianMixture) runs its E-step on the GPU: its
+//! lobe table (mean, κ, C(κ), weight per lobe; guiding-core's
+//! [`GaussianMixture::lobe_table`](guiding_core::GaussianMixture::lobe_table)) and its
+//! batch words are uploaded; the shader finds the region by cell and normal side, samples
+//! and evaluates the mixture exactly, and adds each sample's responsibilities into the
 //! batch sums by compare-exchange. The M-step (guiding-core's own, with its learning
 //! rate) runs on the host after each pass on the batch read back (a few KiB), and the
 //! refitted lobes go up again.
@@ -59,13 +61,12 @@ mod shader;
 use std::time::Instant;
 
 use glam::Vec3;
-use guiding_core::{GaussianMixture, Guide, IrradianceVolume};
 use wgpu::util::DeviceExt;
 
 pub use backend::GpuBackend;
 pub use context::GpuContext;
-use guide_buffers::GuideBuffers;
 pub use guide_buffers::{store_learned, GpuGuide};
+use guide_buffers::{GuideBuffers, HostGuide};
 use params::{method_code, Params};
 use scene_buffers::SceneBuffers;
 
@@ -98,12 +99,9 @@ pub struct GpuTracer {
     rebuild: wgpu::ComputePipeline,
     rebuild_group: wgpu::BindGroup,
     guide: GuideBuffers,
-    /// The host's copy of an uploaded volume, which splits its leaves between passes.
-    volume: Option<IrradianceVolume>,
-    /// The host's copy of an uploaded mixture, which takes the M-step between passes.
-    mixture: Option<GaussianMixture>,
-    /// What the host reads after every learning pass: a volume's leaf visit counts, a
-    /// mixture's batch words.
+    /// The host's copy of an uploaded guide that the host refits between passes.
+    host: Option<HostGuide>,
+    /// What the host reads after every learning pass ([`HostGuide::pass_readback`]).
     host_readback: wgpu::Buffer,
     params: Params,
     params_buffer: wgpu::Buffer,
@@ -270,17 +268,10 @@ impl GpuTracer {
         let bind_group = group(&pipeline, &(0..19).collect::<Vec<u32>>(), "trace");
         let rebuild_group = group(&rebuild, &[0, 13, 15, 16, 17, 18, 19], "rebuild");
         context.check_errors()?;
-        let volume = match guide {
-            Some(GpuGuide::Volume(volume)) => Some(volume.clone()),
-            _ => None,
-        };
-        let mixture = match guide {
-            Some(GpuGuide::Mixture(mixture)) => Some(mixture.clone()),
-            _ => None,
-        };
+        let host = guide.and_then(GpuGuide::host_copy);
         let host_readback = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("host readback"),
-            size: if mixture.is_some() { guide_buffers.q.size() } else { guide_buffers.region_visits.size() },
+            size: host.as_ref().map_or(guide_buffers.region_visits.size(), |h| h.pass_readback(&guide_buffers).size()),
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
@@ -292,8 +283,7 @@ impl GpuTracer {
             rebuild,
             rebuild_group,
             guide: guide_buffers,
-            volume,
-            mixture,
+            host,
             host_readback,
             params,
             params_buffer,
@@ -319,7 +309,7 @@ impl GpuTracer {
             pass.set_pipeline(&self.pipeline);
             pass.set_bind_group(0, &self.bind_group, &[]);
             pass.dispatch_workgroups(self.width.div_ceil(8), self.height.div_ceil(8), 1);
-            if self.params.guide_learns != 0 && self.mixture.is_none() {
+            if self.params.guide_learns != 0 && self.host.as_ref().is_none_or(HostGuide::rebuilt_on_gpu) {
                 // Between passes: the CDFs of the probes or leaves that learned.
                 pass.set_pipeline(&self.rebuild);
                 pass.set_bind_group(0, &self.rebuild_group, &[]);
@@ -328,21 +318,17 @@ impl GpuTracer {
         }
         encoder.copy_buffer_to_buffer(&self.image, 0, &self.image_readback, 0, self.image.size());
         encoder.copy_buffer_to_buffer(&self.counters, 0, &self.counters_readback, 0, 16);
-        let learning = self.params.guide_learns != 0;
-        let splitting = self.volume.is_some() && learning;
-        let fitting = self.mixture.is_some() && learning;
-        if splitting || fitting {
-            let source = if fitting { &self.guide.q } else { &self.guide.region_visits };
+        let refitting = self.params.guide_learns != 0 && self.host.is_some();
+        if let (true, Some(host)) = (refitting, &self.host) {
+            let source = host.pass_readback(&self.guide);
             encoder.copy_buffer_to_buffer(source, 0, &self.host_readback, 0, self.host_readback.size());
         }
         queue.submit([encoder.finish()]);
         let image: Vec<[f32; 4]> = self.context.read(&self.image_readback)?;
         let counts: Vec<u32> = self.context.read(&self.counters_readback)?;
-        if splitting {
-            self.split_volume_leaves()?;
-        }
-        if fitting {
-            self.fit_mixture()?;
+        if let (true, Some(host)) = (refitting, self.host.as_mut()) {
+            let words: Vec<u32> = self.context.read(&self.host_readback)?;
+            host.refit(&words, &self.context, &self.guide, &mut self.params)?;
         }
         let counters = PathCounters {
             paths: counts[0] as u64,
@@ -394,40 +380,5 @@ impl GpuTracer {
             }
         }
         Ok((film.image(), statistics))
-    }
-
-    /// Between passes: brings the leaf visit counts home, and when the volume's rule
-    /// says leaves split, its tables too; splits them on the host and uploads the grown
-    /// tree, tables and CDFs.
-    fn split_volume_leaves(&mut self) -> Result<(), String> {
-        let leaf_visits: Vec<u32> = self.context.read(&self.host_readback)?;
-        let Some(volume) = self.volume.as_ref() else { return Ok(()) };
-        let leaves = volume.leaf_count();
-        for (slot, &visits) in volume.leaf_visit_counts().iter().zip(&leaf_visits[..leaves]) {
-            slot.store(visits, std::sync::atomic::Ordering::Relaxed);
-        }
-        if !volume.splits_pending() {
-            return Ok(());
-        }
-        let q = self.read_back(&self.guide.q)?;
-        let patch_visits = self.read_back(&self.guide.patch_visits)?;
-        let Some(volume) = self.volume.as_mut() else { return Ok(()) };
-        let entries = leaves * volume.patch_count();
-        guide_buffers::store_volume_tables(volume, &q[..entries], &patch_visits[..entries], &leaf_visits[..leaves]);
-        volume.rebuild_sampling();
-        self.guide.write_volume(&self.context.queue, volume);
-        self.params.guide_regions = volume.leaf_count() as u32;
-        Ok(())
-    }
-
-    /// Between passes: brings the mixture's batch sums home, takes the M-step there
-    /// (guiding-core's own), and uploads the refitted lobes and an empty batch.
-    fn fit_mixture(&mut self) -> Result<(), String> {
-        let batch: Vec<u32> = self.context.read(&self.host_readback)?;
-        let Some(mixture) = self.mixture.as_mut() else { return Ok(()) };
-        guide_buffers::store(mixture.batch_words(), &batch);
-        mixture.rebuild_sampling();
-        self.guide.write_mixture(&self.context.queue, mixture);
-        Ok(())
     }
 }
