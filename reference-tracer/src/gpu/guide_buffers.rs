@@ -12,9 +12,26 @@ use std::sync::atomic::{AtomicU32, Ordering};
 use guiding_core::{GaussianMixture, Guide, HemisphereGrid, HemisphereMapping, IrradianceVolume, LearningRate};
 use wgpu::util::DeviceExt;
 
-use super::params::{Params, GUIDE_HEMISPHERE, GUIDE_MIXTURE, GUIDE_VOLUME};
+use super::params::Params;
 use super::GpuContext;
 use crate::directional_guide::DirectionalGuide;
+
+/// `Params::guide_kind`: which structure guides (the shader's GUIDE_*).
+const GUIDE_HEMISPHERE: u32 = 0;
+const GUIDE_VOLUME: u32 = 1;
+const GUIDE_MIXTURE: u32 = 2;
+
+/// The shader's names of the structures' codes, which it is generated with.
+pub(super) const GUIDE_KINDS: [(&str, u32); 3] =
+    [("GUIDE_HEMISPHERE", GUIDE_HEMISPHERE), ("GUIDE_VOLUME", GUIDE_VOLUME), ("GUIDE_MIXTURE", GUIDE_MIXTURE)];
+
+/// Each structure's own shader file (locating, sampling and evaluating it), joined
+/// before the dispatch between them (`shader/guide.wgsl`).
+pub(super) const GUIDE_SHADERS: [&str; 3] = [
+    include_str!("shader/guide_hemisphere.wgsl"),
+    include_str!("shader/guide_volume.wgsl"),
+    include_str!("shader/guide_mixture.wgsl"),
+];
 
 /// The structure the GPU guides with.
 #[derive(Clone, Copy)]

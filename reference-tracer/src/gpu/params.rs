@@ -144,11 +144,6 @@ impl Params {
     }
 }
 
-/// `Params::guide_kind`: which structure guides (the shader's GUIDE_*).
-pub(super) const GUIDE_HEMISPHERE: u32 = 0;
-pub(super) const GUIDE_VOLUME: u32 = 1;
-pub(super) const GUIDE_MIXTURE: u32 = 2;
-
 /// `Params::learning_rate`: α constant, 1/(1 + the entry's visits), or 1/(1 + the
 /// region's visits) (the shader's LEARNING_RATE_*).
 pub(super) const LEARNING_RATE_EXPONENTIAL: u32 = 0;

@@ -8,31 +8,35 @@
 
 use std::fmt::Write;
 
+use super::guide_buffers::{GUIDE_KINDS, GUIDE_SHADERS};
 use super::params::{
-    method_code, Params, GUIDE_HEMISPHERE, GUIDE_MIXTURE, GUIDE_VOLUME, LEARNING_RATE_ENTRY_VISITS,
-    LEARNING_RATE_EXPONENTIAL, LEARNING_RATE_REGION_VISITS,
+    method_code, Params, LEARNING_RATE_ENTRY_VISITS, LEARNING_RATE_EXPONENTIAL, LEARNING_RATE_REGION_VISITS,
 };
 use super::scene_buffers::{MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC, MATERIAL_DIFFUSE, MATERIAL_THIN_DIELECTRIC};
 use crate::integrator::Method;
 use guiding_core::volume::SH_NORMALIZATION;
 
-/// The shader's files, in the order they are joined.
-const PARTS: [&str; 11] = [
+/// The shader's files before the guides', in the order they are joined.
+const BEFORE_GUIDES: [&str; 6] = [
     include_str!("shader/header.wgsl"),
     include_str!("shader/rng.wgsl"),
     include_str!("shader/intersect.wgsl"),
     include_str!("shader/sampling.wgsl"),
     include_str!("shader/bsdf.wgsl"),
     include_str!("shader/lights.wgsl"),
-    include_str!("shader/guide_hemisphere.wgsl"),
-    include_str!("shader/guide_volume.wgsl"),
-    include_str!("shader/guide_mixture.wgsl"),
-    include_str!("shader/guide.wgsl"),
-    include_str!("shader/trace.wgsl"),
 ];
 
+/// The files after each structure's own ([`GUIDE_SHADERS`]): the dispatch between the
+/// guides, then the path, learning and the entry points.
+const AFTER_GUIDES: [&str; 2] = [include_str!("shader/guide.wgsl"), include_str!("shader/trace.wgsl")];
+
+/// Every shader file, in the order they are joined.
+fn parts() -> impl Iterator<Item = &'static str> {
+    BEFORE_GUIDES.into_iter().chain(GUIDE_SHADERS).chain(AFTER_GUIDES)
+}
+
 /// The WGSL constants that must equal Rust's codes, by name.
-fn generated_constants() -> [(&'static str, u32); 14] {
+fn generated_constants() -> impl Iterator<Item = (&'static str, u32)> {
     [
         ("METHOD_PT", method_code(Method::Pt)),
         ("METHOD_NEE", method_code(Method::Nee)),
@@ -42,13 +46,12 @@ fn generated_constants() -> [(&'static str, u32); 14] {
         ("CONDUCTOR", MATERIAL_CONDUCTOR),
         ("DIELECTRIC", MATERIAL_DIELECTRIC),
         ("THIN_DIELECTRIC", MATERIAL_THIN_DIELECTRIC),
-        ("GUIDE_HEMISPHERE", GUIDE_HEMISPHERE),
-        ("GUIDE_VOLUME", GUIDE_VOLUME),
-        ("GUIDE_MIXTURE", GUIDE_MIXTURE),
         ("LEARNING_RATE_EXPONENTIAL", LEARNING_RATE_EXPONENTIAL),
         ("LEARNING_RATE_ENTRY_VISITS", LEARNING_RATE_ENTRY_VISITS),
         ("LEARNING_RATE_REGION_VISITS", LEARNING_RATE_REGION_VISITS),
     ]
+    .into_iter()
+    .chain(GUIDE_KINDS)
 }
 
 /// The whole shader.
@@ -65,7 +68,7 @@ pub(super) fn source() -> String {
     source.push('\n');
     source.push_str(Params::WGSL);
     source.push('\n');
-    PARTS.iter().for_each(|part| source.push_str(part));
+    parts().for_each(|part| source.push_str(part));
     source
 }
 
@@ -93,10 +96,10 @@ mod tests {
     fn generated_constants_are_defined_nowhere_else() {
         for (name, _) in generated_constants() {
             let definition = format!("const {name}:");
-            assert!(PARTS.iter().all(|part| !part.contains(&definition)), "{name} is defined in a shader file");
+            assert!(parts().all(|part| !part.contains(&definition)), "{name} is defined in a shader file");
         }
         assert!(source().contains("const SH_K0: f32 = 0.282095;"), "{}", &source()[..800]);
-        assert!(PARTS.iter().all(|part| !part.contains("struct Params")), "Params is declared in a shader file");
+        assert!(parts().all(|part| !part.contains("struct Params")), "Params is declared in a shader file");
     }
 
     /// Every field of the generated `Params` sits at the offset WGSL's uniform layout
