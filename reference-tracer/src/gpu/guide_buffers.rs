@@ -21,16 +21,37 @@ const GUIDE_HEMISPHERE: u32 = 0;
 const GUIDE_VOLUME: u32 = 1;
 const GUIDE_MIXTURE: u32 = 2;
 
-/// The shader's names of the structures' codes, which it is generated with.
-pub(super) const GUIDE_KINDS: [(&str, u32); 3] =
-    [("GUIDE_HEMISPHERE", GUIDE_HEMISPHERE), ("GUIDE_VOLUME", GUIDE_VOLUME), ("GUIDE_MIXTURE", GUIDE_MIXTURE)];
+/// A structure on the GPU: the name of its code in the shader (`Params::guide_kind`),
+/// the code, and its own shader file, which defines the hooks the shader's guide
+/// dispatch calls by the code (`PREFIX_locate`, `_pdf`, `_sample`, `_learn`,
+/// `_integral`, `_rebuild`: see `shader/guide.wgsl` and `shader.rs`).
+pub(super) struct GuideShader {
+    pub(super) constant: &'static str,
+    pub(super) code: u32,
+    pub(super) prefix: &'static str,
+    pub(super) source: &'static str,
+}
 
-/// Each structure's own shader file (locating, sampling and evaluating it), joined
-/// before the dispatch between them (`shader/guide.wgsl`).
-pub(super) const GUIDE_SHADERS: [&str; 3] = [
-    include_str!("shader/guide_hemisphere.wgsl"),
-    include_str!("shader/guide_volume.wgsl"),
-    include_str!("shader/guide_mixture.wgsl"),
+/// Every structure the GPU guides with; the first is what the dispatch falls back on.
+pub(super) const GUIDE_SHADERS: [GuideShader; 3] = [
+    GuideShader {
+        constant: "GUIDE_HEMISPHERE",
+        code: GUIDE_HEMISPHERE,
+        prefix: "hemisphere",
+        source: include_str!("shader/guide_hemisphere.wgsl"),
+    },
+    GuideShader {
+        constant: "GUIDE_VOLUME",
+        code: GUIDE_VOLUME,
+        prefix: "volume",
+        source: include_str!("shader/guide_volume.wgsl"),
+    },
+    GuideShader {
+        constant: "GUIDE_MIXTURE",
+        code: GUIDE_MIXTURE,
+        prefix: "mixture",
+        source: include_str!("shader/guide_mixture.wgsl"),
+    },
 ];
 
 /// The structure the GPU guides with.

@@ -1,14 +1,17 @@
 //! The GPU tracer's WGSL source: the files of `shader/`, one per concern as the Rust
 //! modules are split (header: bindings and structs; rng; intersect; sampling; bsdf;
-//! lights; one file per guide structure and the dispatch between them; trace: the
-//! path, learning and the entry points), concatenated in order, after the constants
-//! that carry Rust's codes (methods, material kinds, guide structures, learning rates),
-//! guiding-core's spherical-harmonic normalisation and the uniform block `Params`, all
-//! generated here from the Rust values and types themselves so the two sides cannot drift.
+//! lights; guide_table: what the guide structures share; one file per structure, listed
+//! with the rest of its GPU side in `guide_buffers.rs`; guide: the guide's update and
+//! kernels; trace: the path, learning and the entry points), concatenated in order. Before
+//! them come the constants that carry Rust's codes (methods, material kinds, guide
+//! structures, learning rates), guiding-core's spherical-harmonic normalisation and the
+//! uniform block `Params`, and after them the dispatch between the guide structures, all
+//! generated here from the Rust values and types themselves so the two sides cannot
+//! drift, and a structure is added by its own file and its row in `GUIDE_SHADERS`.
 
 use std::fmt::Write;
 
-use super::guide_buffers::{GUIDE_KINDS, GUIDE_SHADERS};
+use super::guide_buffers::GUIDE_SHADERS;
 use super::params::{
     method_code, Params, LEARNING_RATE_ENTRY_VISITS, LEARNING_RATE_EXPONENTIAL, LEARNING_RATE_REGION_VISITS,
 };
@@ -26,13 +29,55 @@ const BEFORE_GUIDES: [&str; 6] = [
     include_str!("shader/lights.wgsl"),
 ];
 
-/// The files after each structure's own ([`GUIDE_SHADERS`]): the dispatch between the
-/// guides, then the path, learning and the entry points.
+/// What the guide structures share, before each one's own file ([`GUIDE_SHADERS`]).
+const GUIDE_TABLE: &str = include_str!("shader/guide_table.wgsl");
+
+/// The files after the guides': the guide's update and kernels, then the path,
+/// learning and the entry points.
 const AFTER_GUIDES: [&str; 2] = [include_str!("shader/guide.wgsl"), include_str!("shader/trace.wgsl")];
 
 /// Every shader file, in the order they are joined.
 fn parts() -> impl Iterator<Item = &'static str> {
-    BEFORE_GUIDES.into_iter().chain(GUIDE_SHADERS).chain(AFTER_GUIDES)
+    let guides = GUIDE_SHADERS.iter().map(|guide| guide.source);
+    BEFORE_GUIDES.into_iter().chain([GUIDE_TABLE]).chain(guides).chain(AFTER_GUIDES)
+}
+
+/// The hooks each structure's shader file defines as `PREFIX_NAME`, and the dispatch
+/// `guide_NAME` calls by `params.guide_kind`: name, parameters, return type ("" for
+/// none).
+const GUIDE_HOOKS: [(&str, &str, &str); 6] = [
+    ("locate", "point: vec3<f32>, normal: vec3<f32>", "u32"),
+    ("pdf", "region: u32, normal: vec3<f32>, wi: vec3<f32>", "f32"),
+    ("sample", "region: u32, normal: vec3<f32>, u: vec2<f32>", "GuideSample"),
+    ("learn", "region: u32, wi: vec3<f32>, goal: f32, pdf: f32", ""),
+    ("integral", "region: u32, m: Material, shading: Shading, wo_local: vec3<f32>, u: vec2<f32>, u_lobe: f32", "f32"),
+    ("rebuild", "region: u32", ""),
+];
+
+/// The guide dispatch: for each hook, `guide_NAME` calling the hook of the structure
+/// `params.guide_kind` names (the first structure's where it names none).
+fn guide_dispatch() -> String {
+    let mut source = String::from("// Generated from Rust (gpu/shader.rs): the guide dispatch.\n");
+    let [first, others @ ..] = &GUIDE_SHADERS;
+    for (name, parameters, returns) in GUIDE_HOOKS {
+        let arguments: Vec<&str> = parameters.split(", ").filter_map(|p| p.split(':').next()).collect();
+        let arguments = arguments.join(", ");
+        let (arrow, give, done) = if returns.is_empty() {
+            (String::new(), "", " return;")
+        } else {
+            (format!(" -> {returns}"), "return ", "")
+        };
+        let _ = writeln!(source, "fn guide_{name}({parameters}){arrow} {{");
+        for guide in others {
+            let (constant, prefix) = (guide.constant, guide.prefix);
+            let _ = writeln!(
+                source,
+                "    if (params.guide_kind == {constant}) {{ {give}{prefix}_{name}({arguments});{done} }}"
+            );
+        }
+        let _ = writeln!(source, "    {give}{}_{name}({arguments});\n}}", first.prefix);
+    }
+    source
 }
 
 /// The WGSL constants that must equal Rust's codes, by name.
@@ -51,7 +96,7 @@ fn generated_constants() -> impl Iterator<Item = (&'static str, u32)> {
         ("LEARNING_RATE_REGION_VISITS", LEARNING_RATE_REGION_VISITS),
     ]
     .into_iter()
-    .chain(GUIDE_KINDS)
+    .chain(GUIDE_SHADERS.iter().map(|guide| (guide.constant, guide.code)))
 }
 
 /// The whole shader.
@@ -69,6 +114,7 @@ pub(super) fn source() -> String {
     source.push_str(Params::WGSL);
     source.push('\n');
     parts().for_each(|part| source.push_str(part));
+    source.push_str(&guide_dispatch());
     source
 }
 
@@ -100,6 +146,10 @@ mod tests {
         }
         assert!(source().contains("const SH_K0: f32 = 0.282095;"), "{}", &source()[..800]);
         assert!(parts().all(|part| !part.contains("struct Params")), "Params is declared in a shader file");
+        for (hook, _, _) in GUIDE_HOOKS {
+            let dispatch = format!("fn guide_{hook}(");
+            assert!(parts().all(|part| !part.contains(&dispatch)), "guide_{hook} is defined in a shader file");
+        }
     }
 
     /// Every field of the generated `Params` sits at the offset WGSL's uniform layout

@@ -1,7 +1,6 @@
 // ---------------------------------------------------------------------------------
 // The hemisphere grid (guiding-core's hemisphere/): lookup, sampling, pdf, Eq. (1).
 
-const NO_PROBE: u32 = 0xffffffffu;
 const MAX_CELL: i32 = 1048576;
 const MIN_SAMPLED_COS: f32 = 1e-5;
 
@@ -116,41 +115,6 @@ fn direction_in_patch(entry: u32, xi: vec2<f32>) -> vec3<f32> {
     return vec3<f32>(d.x * scale, d.y * scale, MIN_SAMPLED_COS);
 }
 
-fn patch_probability(region: u32, entry: u32) -> f32 {
-    let base = region * params.guide_patches;
-    let low = select(0.0, cdf[base + entry - 1u], entry > 0u);
-    return cdf[base + entry] - low;
-}
-
-struct CdfSample {
-    entry: u32,
-    rest: f32,
-};
-
-// sample_cdf over region `region`'s patches: the patch, and `u` rescaled inside it.
-fn invert_cdf(region: u32, u: f32) -> CdfSample {
-    let n = params.guide_patches;
-    let base = region * n;
-    var low = 0u;
-    var high = n;
-    while (low < high) {
-        let middle = (low + high) / 2u;
-        if (cdf[base + middle] <= u) { low = middle + 1u; } else { high = middle; }
-    }
-    let entry = min(low, n - 1u);
-    let start = select(0.0, cdf[base + entry - 1u], entry > 0u);
-    let width = cdf[base + entry] - start;
-    var s: CdfSample;
-    s.entry = entry;
-    s.rest = clamp(select(0.0, (u - start) / width, width > 0.0), 0.0, 0.99999994);
-    return s;
-}
-
-struct GuideSample {
-    wi: vec3<f32>,
-    pdf: f32,
-};
-
 fn grid_pdf(probe: u32, wi: vec3<f32>) -> f32 {
     let entry = patch_of(to_local(frame_from_normal(probe_normal(probe)), wi));
     if (entry >= params.guide_patches) { return 0.0; }
@@ -163,4 +127,65 @@ fn grid_sample(probe: u32, u: vec2<f32>) -> GuideSample {
     s.wi = to_world(frame_from_normal(probe_normal(probe)), direction_in_patch(c.entry, vec2<f32>(c.rest, u.y)));
     s.pdf = patch_probability(probe, c.entry) / patch_solid_angle();
     return s;
+}
+
+// A float added to a probe's Lambertian sum by compare-exchange (storage pointers
+// cannot be passed to functions in WGSL, so this names its array).
+fn add_to_lambertian_sum(probe: u32, value: f32) {
+    var old = atomicLoad(&integral_terms[probe]);
+    loop {
+        let result = atomicCompareExchangeWeak(&integral_terms[probe], old, bitcast<u32>(bitcast<f32>(old) + value));
+        if (result.exchanged) { break; }
+        old = result.old_value;
+    }
+}
+
+// The hooks of the guide dispatch (guide.wgsl): a region is a probe.
+
+fn hemisphere_locate(point: vec3<f32>, normal: vec3<f32>) -> u32 {
+    return locate(point, normal);
+}
+
+fn hemisphere_pdf(region: u32, normal: vec3<f32>, wi: vec3<f32>) -> f32 {
+    return grid_pdf(region, wi);
+}
+
+fn hemisphere_sample(region: u32, normal: vec3<f32>, u: vec2<f32>) -> GuideSample {
+    return grid_sample(region, u);
+}
+
+// The patch of probe `region` holding world direction `wi`, or N (none).
+fn hemisphere_patch(region: u32, wi: vec3<f32>) -> u32 {
+    return patch_of(to_local(frame_from_normal(probe_normal(region)), wi));
+}
+
+// Eq. (1), the probe's Lambertian sum kept current.
+fn hemisphere_learn(region: u32, wi: vec3<f32>, goal: f32, pdf: f32) {
+    let entry = hemisphere_patch(region, wi);
+    let change = table_learn(region, entry, goal);
+    if (change != 0.0) {
+        let weighted = change * patch_weights[entry];
+        if (weighted != 0.0) { add_to_lambertian_sum(region, weighted); }
+    }
+}
+
+// ∫ Q fs cos: exact from the Lambertian sum for diffuse surfaces, one BSDF sample for
+// glossy ones.
+fn hemisphere_integral(region: u32, m: Material, shading: Shading, wo_local: vec3<f32>, u: vec2<f32>, u_lobe: f32) -> f32 {
+    if (m.kind == DIFFUSE) {
+        return luminance(m.albedo.xyz) / PI * max(bitcast<f32>(atomicLoad(&integral_terms[region])), 0.0);
+    }
+    let d = bsdf_direction(m, shading, wo_local, u, u_lobe);
+    if (!d.ok) { return 0.0; }
+    return table_value(region, hemisphere_patch(region, d.wi)) * d.weight;
+}
+
+// The probe's exact Lambertian sum Σ Q_k·∫_k cos, then its CDF.
+fn hemisphere_rebuild(region: u32) {
+    let n = params.guide_patches;
+    let base = region * n;
+    var cosine_sum = 0.0;
+    for (var k = 0u; k < n; k += 1u) { cosine_sum += bitcast<f32>(atomicLoad(&q[base + k])) * patch_weights[k]; }
+    atomicStore(&integral_terms[region], bitcast<u32>(cosine_sum));
+    table_rebuild_cdf(region);
 }

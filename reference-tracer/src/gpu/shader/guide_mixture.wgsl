@@ -113,9 +113,16 @@ fn add_to_batch(index: u32, value: f32) {
     }
 }
 
+// The hooks of the guide dispatch (guide.wgsl): a region is a cell's normal side;
+// mixture_pdf and mixture_sample above are its pdf and sample.
+
+fn mixture_locate(point: vec3<f32>, normal: vec3<f32>) -> u32 {
+    return mixture_region(point, normal);
+}
+
 // GaussianMixture::update_sampled: v = target / sampling pdf, split over the lobes by
 // their responsibilities into the region's batch sums.
-fn mixture_update(region: u32, d: vec3<f32>, goal: f32, pdf: f32) {
+fn mixture_learn(region: u32, d: vec3<f32>, goal: f32, pdf: f32) {
     if (!(abs(dot(d, d) - 1.0) < 1e-3 && pdf > 0.0 && pdf < INFINITY)) { return; }
     let weight = min(goal / pdf, 1e30);
     let lobes = params.guide_patches;
@@ -146,7 +153,7 @@ fn mixture_update(region: u32, d: vec3<f32>, goal: f32, pdf: f32) {
 
 // GaussianMixture::estimate_integral: S·Σ_k w_k·fs(ω_k)·cos θ_k with ω_k drawn from
 // lobe k by the same `u`.
-fn mixture_integral(region: u32, m: Material, shading: Shading, wo_local: vec3<f32>, u: vec2<f32>) -> f32 {
+fn mixture_integral(region: u32, m: Material, shading: Shading, wo_local: vec3<f32>, u: vec2<f32>, u_lobe: f32) -> f32 {
     let scale = lobe_word(region, 0u, 6u);
     if (!(scale > 0.0)) { return 0.0; }
     var sum = 0.0;
@@ -156,3 +163,6 @@ fn mixture_integral(region: u32, m: Material, shading: Shading, wo_local: vec3<f
     }
     return min(scale * sum, 3.4e38);
 }
+
+// The host takes the M-step between passes: the rebuild kernel has nothing to do.
+fn mixture_rebuild(region: u32) {}

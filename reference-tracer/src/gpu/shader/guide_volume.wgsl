@@ -6,23 +6,6 @@
 const LEAF_BIT: u32 = 0x80000000u;
 const MAX_TREE_DEPTH: u32 = 32u;
 
-// CellGrid (the volume's and the mixture's): `p` in cell units from the low corner, the
-// cell holding it (the nearest one outside) and that cell's index.
-struct GridCell {
-    scaled: vec3<f32>,
-    cell: vec3<i32>,
-    index: u32,
-}
-
-fn grid_cell(p: vec3<f32>) -> GridCell {
-    let resolution = vec3<i32>(params.grid_cells);
-    var g: GridCell;
-    g.scaled = max((p - params.grid_low) * params.grid_cells_per_unit, vec3<f32>(0.0));
-    g.cell = min(vec3<i32>(g.scaled), resolution - vec3<i32>(1));
-    g.index = u32((g.cell.z * resolution.y + g.cell.y) * resolution.x + g.cell.x);
-    return g;
-}
-
 // IrradianceVolume::leaf_at: the grid cell holding `p` (the nearest one outside), then
 // down by octants; NO_PROBE for a non-finite point.
 fn volume_leaf(p: vec3<f32>) -> u32 {
@@ -118,4 +101,40 @@ fn sh_cosine_integral(leaf: u32, normal: vec3<f32>) -> f32 {
         sum += weights[i] * bitcast<f32>(atomicLoad(&integral_terms[9u * leaf + i])) * y[i];
     }
     return max(sum, 0.0);
+}
+
+// The hooks of the guide dispatch (guide.wgsl): a region is a leaf.
+
+fn volume_locate(point: vec3<f32>, normal: vec3<f32>) -> u32 {
+    return volume_leaf(point);
+}
+
+fn volume_learn(region: u32, wi: vec3<f32>, goal: f32, pdf: f32) {
+    _ = table_learn(region, sphere_patch_of(wi), goal);
+}
+
+// ∫ Q fs cos: from the leaf's spherical harmonics for diffuse surfaces, one BSDF sample
+// for glossy ones.
+fn volume_integral(region: u32, m: Material, shading: Shading, wo_local: vec3<f32>, u: vec2<f32>, u_lobe: f32) -> f32 {
+    if (m.kind == DIFFUSE) {
+        return luminance(m.albedo.xyz) * sh_cosine_integral(region, shading.frame.normal);
+    }
+    let d = bsdf_direction(m, shading, wo_local, u, u_lobe);
+    if (!d.ok) { return 0.0; }
+    return table_value(region, sphere_patch_of(d.wi)) * d.weight;
+}
+
+// The leaf's projection on the spherical harmonics, then its CDF.
+fn volume_rebuild(region: u32) {
+    let n = params.guide_patches;
+    let base = region * n;
+    var sh = array<f32, 9>(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+    for (var k = 0u; k < n; k += 1u) {
+        let value = bitcast<f32>(atomicLoad(&q[base + k]));
+        for (var i = 0u; i < 9u; i += 1u) { sh[i] += value * patch_weights[9u * k + i]; }
+    }
+    for (var i = 0u; i < 9u; i += 1u) {
+        atomicStore(&integral_terms[9u * region + i], bitcast<u32>(clamp(sh[i], -3.4e38, 3.4e38)));
+    }
+    table_rebuild_cdf(region);
 }
