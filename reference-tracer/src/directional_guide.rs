@@ -2,9 +2,11 @@
 //! chosen on the command line, built over the scene and handed to the tracer as a
 //! concrete [`Guide`] type (the tracer is generic; this enum only picks the instance).
 
+use guiding_core::volume::SphereLayout;
 use guiding_core::{
     GaussianMixture, GaussianMixtureSettings, Guide, GuideStats, HemisphereGrid, HemisphereGridSettings,
-    IrradianceVolume, IrradianceVolumeSettings, SpatialDirectionalTree, SpatialDirectionalTreeSettings,
+    IntegralEstimator, IrradianceVolume, IrradianceVolumeSettings, SpatialDirectionalTree,
+    SpatialDirectionalTreeSettings, UpdateRule,
 };
 
 use crate::scene::Scene;
@@ -90,6 +92,117 @@ impl From<HemisphereGridSettings> for DirectionalGuideSettings {
 impl From<GaussianMixtureSettings> for DirectionalGuideSettings {
     fn from(settings: GaussianMixtureSettings) -> Self {
         DirectionalGuideSettings::Mixture(settings)
+    }
+}
+
+/// What a front end (the command line) chose for the directional guides, from which
+/// [`DirectionalGuideSettings::from_choices`] builds any structure's settings; each
+/// `None` keeps the structure's own default.
+#[derive(Clone, Copy, Debug)]
+pub struct GuideChoices {
+    /// The hemisphere grid's settings as chosen: its own, and the budget, patches,
+    /// update rule, initial Q and uniform mix the volume and the mixture take from it.
+    pub hemisphere: HemisphereGridSettings,
+    /// The estimator of Eq. (1)'s integral, where one was chosen.
+    pub integral: Option<IntegralEstimator>,
+    /// Whether the grid learns from the path's own continuation unless an integral was
+    /// chosen (guided without next-event estimation; the bidirectional methods).
+    pub continuation_by_default: bool,
+    /// Q of every entry before learning (radiance), where chosen.
+    pub initial_q: Option<f32>,
+    /// The share of each distribution spread uniformly, where chosen.
+    pub uniform_mix: Option<f32>,
+    /// Lobes per mixture.
+    pub mixture_lobes: usize,
+    /// The tree's own.
+    pub tree: TreeChoices,
+}
+
+/// What was chosen for the spatial × directional tree; each `None` keeps guiding-core's
+/// default.
+#[derive(Clone, Copy, Debug)]
+pub struct TreeChoices {
+    /// Memory budget, bytes.
+    pub budget_bytes: usize,
+    /// The spatial split constant c.
+    pub threshold: Option<f32>,
+    /// The directional split share ρ of a leaf's flux.
+    pub flux_fraction: Option<f32>,
+    /// Whether distributions fold onto the normal's hemisphere.
+    pub fold: Option<bool>,
+    /// The mixed-normal share that splits a leaf.
+    pub mixed_share: Option<f32>,
+    /// Whether an aligned normal's half is sampled by density × cos θ.
+    pub cosine: Option<bool>,
+    /// Whether there is one spatial tree per world axis.
+    pub per_axis: Option<bool>,
+    /// Whether directions are fitted to the root mean square of what arrives.
+    pub second_moment: Option<bool>,
+}
+
+impl DirectionalGuideSettings {
+    /// The settings of `structure` from what was `chosen`, checked (an error names the
+    /// structure and what is wrong).
+    pub fn from_choices(structure: GuideStructure, chosen: &GuideChoices) -> Result<Self, String> {
+        let hemisphere = chosen.hemisphere;
+        Ok(match structure {
+            GuideStructure::Hemisphere if chosen.integral.is_none() && chosen.continuation_by_default => {
+                let integral = IntegralEstimator::PathContinuation;
+                HemisphereGridSettings { update_rule: UpdateRule { integral, ..hemisphere.update_rule }, ..hemisphere }
+                    .into()
+            }
+            GuideStructure::Hemisphere => hemisphere.into(),
+            GuideStructure::Volume => {
+                let defaults = IrradianceVolumeSettings::default();
+                let settings = IrradianceVolumeSettings {
+                    budget_bytes: hemisphere.budget_bytes,
+                    layout: SphereLayout { resolution: hemisphere.layout.resolution },
+                    update_rule: hemisphere.update_rule,
+                    initial_q: chosen.initial_q.unwrap_or(defaults.initial_q),
+                    uniform_mix: chosen.uniform_mix.unwrap_or(defaults.uniform_mix),
+                    ..defaults
+                };
+                settings.validate().map_err(|e| format!("volume guide: {e}"))?;
+                settings.into()
+            }
+            GuideStructure::Mixture => {
+                let defaults = GaussianMixtureSettings::default();
+                let settings = GaussianMixtureSettings {
+                    budget_bytes: hemisphere.budget_bytes,
+                    lobes: chosen.mixture_lobes,
+                    update_rule: hemisphere.update_rule,
+                    initial_q: chosen.initial_q.unwrap_or(defaults.initial_q),
+                    uniform_mix: chosen.uniform_mix.unwrap_or(defaults.uniform_mix),
+                    ..defaults
+                };
+                settings.validate().map_err(|e| format!("mixture guide: {e}"))?;
+                settings.into()
+            }
+            GuideStructure::Tree => {
+                let tree = &chosen.tree;
+                let integral =
+                    chosen.integral.unwrap_or(SpatialDirectionalTreeSettings::default().update_rule.integral);
+                // The second moment by default where the integral allows it; asked for
+                // with another, the settings' check names the clash.
+                let learning_rate = hemisphere.update_rule.learning_rate;
+                let defaults =
+                    SpatialDirectionalTreeSettings::default().with_update_rule(UpdateRule { learning_rate, integral });
+                let settings = SpatialDirectionalTreeSettings {
+                    budget_bytes: tree.budget_bytes,
+                    uniform_mix: chosen.uniform_mix.unwrap_or(defaults.uniform_mix),
+                    spatial_threshold: tree.threshold.unwrap_or(defaults.spatial_threshold),
+                    flux_fraction: tree.flux_fraction.unwrap_or(defaults.flux_fraction),
+                    fold_to_hemisphere: tree.fold.unwrap_or(defaults.fold_to_hemisphere),
+                    mixed_normal_share: tree.mixed_share.unwrap_or(defaults.mixed_normal_share),
+                    cosine_product: tree.cosine.unwrap_or(defaults.cosine_product),
+                    trees_per_axis: tree.per_axis.unwrap_or(defaults.trees_per_axis),
+                    second_moment: tree.second_moment.unwrap_or(defaults.second_moment),
+                    ..defaults
+                };
+                settings.validate().map_err(|e| format!("tree guide: {e}"))?;
+                settings.into()
+            }
+        })
     }
 }
 

@@ -1,16 +1,14 @@
 //! The options translated into the settings of the guides, learners and integrator.
 
-use guiding_core::volume::SphereLayout;
 use guiding_core::{
-    EnvTileGuideSettings, FocalGuideSettings, GaussianMixtureSettings, HemisphereGridSettings, IntegralEstimator,
-    IrradianceVolumeSettings, LightGuideSettings, NextEventGateSettings, PatchLayout, SpatialDirectionalTreeSettings,
-    UpdateRule,
+    EnvTileGuideSettings, FocalGuideSettings, HemisphereGridSettings, IntegralEstimator, LightGuideSettings,
+    NextEventGateSettings, PatchLayout, UpdateRule,
 };
 
 use super::options::GuideShare;
 use super::options::{GuideChoice, RouletteKind, TraceOptions};
 use crate::backend::Device;
-use crate::directional_guide::{DirectionalGuideSettings, GuideStructure};
+use crate::directional_guide::{DirectionalGuideSettings, GuideChoices, GuideStructure, TreeChoices};
 use crate::integrator::{IntegratorSettings, Method, Roulette, DEFAULT_GUIDE_MIN_ALPHA};
 use crate::plan::GuidePlan;
 use crate::schedule::Schedule;
@@ -24,70 +22,31 @@ impl TraceOptions {
         structure: GuideStructure,
         method: Method,
     ) -> Result<DirectionalGuideSettings, String> {
-        let hemisphere = self.hemisphere_settings()?;
-        Ok(match structure {
+        if !(self.tree_mib.is_finite() && self.tree_mib > 0.0) {
+            return Err(format!("--tree-mib {} must be positive", self.tree_mib));
+        }
+        let choices = GuideChoices {
+            hemisphere: self.hemisphere_settings()?,
+            integral: self.integral,
             // Guided without next-event estimation learns the grid from the path's own
             // continuation by default (see `without_nee_defaults`), as bdpt-guided always
             // does.
-            GuideStructure::Hemisphere
-                if self.integral.is_none() && (self.without_nee_defaults(method) || method.bidirectional()) =>
-            {
-                let integral = IntegralEstimator::PathContinuation;
-                HemisphereGridSettings { update_rule: UpdateRule { integral, ..hemisphere.update_rule }, ..hemisphere }
-                    .into()
-            }
-            GuideStructure::Hemisphere => hemisphere.into(),
-            GuideStructure::Volume => {
-                let defaults = IrradianceVolumeSettings::default();
-                let settings = IrradianceVolumeSettings {
-                    budget_bytes: hemisphere.budget_bytes,
-                    layout: SphereLayout { resolution: self.patches },
-                    update_rule: hemisphere.update_rule,
-                    initial_q: self.initial_q.unwrap_or(defaults.initial_q),
-                    uniform_mix: self.uniform_mix.unwrap_or(defaults.uniform_mix),
-                    ..defaults
-                };
-                settings.validate().map_err(|e| format!("volume guide: {e}"))?;
-                settings.into()
-            }
-            GuideStructure::Mixture => {
-                let defaults = GaussianMixtureSettings::default();
-                let settings = GaussianMixtureSettings {
-                    budget_bytes: hemisphere.budget_bytes,
-                    lobes: self.mixture_lobes,
-                    update_rule: hemisphere.update_rule,
-                    initial_q: self.initial_q.unwrap_or(defaults.initial_q),
-                    uniform_mix: self.uniform_mix.unwrap_or(defaults.uniform_mix),
-                    ..defaults
-                };
-                settings.validate().map_err(|e| format!("mixture guide: {e}"))?;
-                settings.into()
-            }
-            GuideStructure::Tree => {
-                if !(self.tree_mib.is_finite() && self.tree_mib > 0.0) {
-                    return Err(format!("--tree-mib {} must be positive", self.tree_mib));
-                }
-                let integral = self.integral.unwrap_or(SpatialDirectionalTreeSettings::default().update_rule.integral);
-                // The second moment by default where the integral allows it; asked for
-                // with another, the settings' check names the clash.
-                let defaults = SpatialDirectionalTreeSettings::default()
-                    .with_update_rule(UpdateRule { learning_rate: self.learning_rate, integral });
-                let settings = SpatialDirectionalTreeSettings {
-                    budget_bytes: (self.tree_mib * (1 << 20) as f64) as usize,
-                    uniform_mix: self.uniform_mix.unwrap_or(defaults.uniform_mix),
-                    spatial_threshold: self.tree_threshold.unwrap_or(defaults.spatial_threshold),
-                    flux_fraction: self.tree_flux_fraction.unwrap_or(defaults.flux_fraction),
-                    fold_to_hemisphere: self.tree_fold.unwrap_or(defaults.fold_to_hemisphere),
-                    mixed_normal_share: self.tree_mixed_share.unwrap_or(defaults.mixed_normal_share),
-                    cosine_product: self.tree_cosine.unwrap_or(defaults.cosine_product),
-                    trees_per_axis: self.tree_per_axis.unwrap_or(defaults.trees_per_axis),
-                    second_moment: self.tree_second_moment.unwrap_or(defaults.second_moment),
-                    ..defaults
-                };
-                settings.validate().map_err(|e| format!("tree guide: {e}"))?;
-                settings.into()
-            }
-        })
+            continuation_by_default: self.without_nee_defaults(method) || method.bidirectional(),
+            initial_q: self.initial_q,
+            uniform_mix: self.uniform_mix,
+            mixture_lobes: self.mixture_lobes,
+            tree: TreeChoices {
+                budget_bytes: (self.tree_mib * (1 << 20) as f64) as usize,
+                threshold: self.tree_threshold,
+                flux_fraction: self.tree_flux_fraction,
+                fold: self.tree_fold,
+                mixed_share: self.tree_mixed_share,
+                cosine: self.tree_cosine,
+                per_axis: self.tree_per_axis,
+                second_moment: self.tree_second_moment,
+            },
+        };
+        DirectionalGuideSettings::from_choices(structure, &choices)
     }
 
     /// The one `--guide` of `render` and `reference`.
