@@ -36,6 +36,15 @@ pub enum GuideStructure {
 }
 
 impl GuideStructure {
+    /// Every structure, in the order the command line lists them.
+    pub const ALL: [GuideStructure; 4] =
+        [GuideStructure::Hemisphere, GuideStructure::Volume, GuideStructure::Mixture, GuideStructure::Tree];
+
+    /// The command line's names of every structure, comma-separated.
+    pub fn names() -> String {
+        Self::ALL.map(Self::name).join(", ")
+    }
+
     /// The command line's name for it.
     pub fn name(self) -> &'static str {
         match self {
@@ -48,13 +57,10 @@ impl GuideStructure {
 
     /// Parses [`name`](Self::name)'s output.
     pub fn from_name(s: &str) -> Result<Self, String> {
-        match s {
-            "hemisphere" => Ok(GuideStructure::Hemisphere),
-            "volume" => Ok(GuideStructure::Volume),
-            "mixture" => Ok(GuideStructure::Mixture),
-            "tree" => Ok(GuideStructure::Tree),
-            _ => Err(format!("unknown guide structure `{s}` (hemisphere, volume, mixture, tree)")),
-        }
+        Self::ALL
+            .into_iter()
+            .find(|structure| structure.name() == s)
+            .ok_or_else(|| format!("unknown guide structure `{s}` ({})", Self::names()))
     }
 }
 

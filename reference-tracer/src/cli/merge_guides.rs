@@ -30,7 +30,7 @@ impl GuideKind {
             "environment" => Ok(GuideKind::Environment),
             _ => GuideStructure::from_name(s)
                 .map(GuideKind::Directional)
-                .map_err(|_| format!("unknown guide `{s}` (hemisphere, volume, mixture, tree, lights, environment)")),
+                .map_err(|_| format!("unknown guide `{s}` ({}, lights, environment)", GuideStructure::names())),
         }
     }
 }
