@@ -8,7 +8,7 @@ use guiding_core::{DirectionalDistribution, Guide, Hit, Intersector, LightCell, 
 
 use super::counters::{PathCounters, GATE_PATH_STRIDE};
 use super::method::LightSelection;
-use super::tracer::{nee_partner_pdf, GuideClock, NeeCells, PathTracer, SurfaceInteraction};
+use super::tracer::{nee_partner_pdf, GuideClock, LightSampleRecord, NeeCells, PathTracer, SurfaceInteraction};
 use crate::color::luminance;
 use crate::environment::Environment;
 use crate::sampling::power_heuristic;
@@ -22,19 +22,6 @@ pub(super) struct DirectLight {
     pub(super) radiance: Vec3,
     /// The unoccluded light sample, if any.
     pub(super) sample: Option<LightSampleRecord>,
-}
-
-/// An unoccluded light sample as a record of incident radiance.
-#[derive(Clone, Copy, Debug)]
-pub(super) struct LightSampleRecord {
-    /// Towards the light (unit).
-    pub(super) direction: Vec3,
-    /// Incident radiance (luminance) along `direction`, unweighted.
-    pub(super) incident: f32,
-    /// Density of the light sample, per steradian.
-    pub(super) light_pdf: f32,
-    /// Density with which scattering draws `direction`, per steradian.
-    pub(super) scatter_pdf: f32,
 }
 
 impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {

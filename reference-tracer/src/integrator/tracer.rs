@@ -10,7 +10,6 @@ use guiding_core::{
 };
 
 use super::counters::PathCounters;
-use super::direct::LightSampleRecord;
 use super::method::Method;
 use super::settings::IntegratorSettings;
 use crate::color::luminance;
@@ -95,6 +94,19 @@ pub(super) struct RouletteVertex {
     pub(super) after_light_sample: f32,
     /// The path's rays so far, at the roulette's decision here.
     pub(super) rays: u64,
+}
+
+/// An unoccluded light sample as a record of incident radiance.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct LightSampleRecord {
+    /// Towards the light (unit).
+    pub(super) direction: Vec3,
+    /// Incident radiance (luminance) along `direction`, unweighted.
+    pub(super) incident: f32,
+    /// Density of the light sample, per steradian.
+    pub(super) light_pdf: f32,
+    /// Density with which scattering draws `direction`, per steradian.
+    pub(super) scatter_pdf: f32,
 }
 
 /// A light sample kept for learning at the end of its path.
