@@ -139,9 +139,7 @@ impl GpuGuide<'_> {
             }
         }
     }
-}
 
-impl GpuGuide<'_> {
     /// The host's copy of the guide where the host refits it between passes (a volume
     /// splits its leaves, a mixture takes its M-step); `None` for the grid, whose CDFs
     /// the GPU rebuilds.
@@ -197,11 +195,7 @@ impl HostGuide {
                 if !volume.splits_pending() {
                     return Ok(());
                 }
-                let q = context.copy_to_host(&buffers.q)?;
-                let patch_visits = context.copy_to_host(&buffers.patch_visits)?;
-                let entries = leaves * volume.patch_count();
-                store_volume_tables(volume, &q[..entries], &patch_visits[..entries], &words[..leaves]);
-                volume.rebuild_sampling();
+                buffers.read_volume_tables(context, volume, &words[..leaves])?;
                 buffers.write_volume(&context.queue, volume);
                 params.guide_regions = volume.leaf_count() as u32;
             }
@@ -394,6 +388,22 @@ impl GuideBuffers {
         queue.write_buffer(&self.q, 0, bytemuck::cast_slice(&a.q));
     }
 
+    /// Reads the volume's learned Q and patch visits back into `volume` (whose leaves are
+    /// those on the GPU), with its `leaf_visits`, and rebuilds its sampling.
+    fn read_volume_tables(
+        &self,
+        context: &GpuContext,
+        volume: &mut IrradianceVolume,
+        leaf_visits: &[u32],
+    ) -> Result<(), String> {
+        let entries = volume.leaf_count() * volume.patch_count();
+        let q = context.copy_to_host(&self.q)?;
+        let patch_visits = context.copy_to_host(&self.patch_visits)?;
+        store_volume_tables(volume, &q[..entries], &patch_visits[..entries], leaf_visits);
+        volume.rebuild_sampling();
+        Ok(())
+    }
+
     /// Reads what `guide` (the guide uploaded, with `host` its host copy and `params`
     /// the pass parameters) learned back into it: a grid takes the learned Q and visit
     /// counts ([`store_learned`]); a volume becomes the host's copy as it learned and
@@ -420,13 +430,9 @@ impl GuideBuffers {
             }
             (DirectionalGuide::Volume(volume), Some(HostGuide::Volume(learned))) => {
                 let mut learned = learned.clone();
-                let leaves = learned.leaf_count();
-                let entries = leaves * learned.patch_count();
-                let q = context.copy_to_host(&self.q)?;
-                let patch_visits = context.copy_to_host(&self.patch_visits)?;
                 let leaf_visits = context.copy_to_host(&self.region_visits)?;
-                store_volume_tables(&learned, &q[..entries], &patch_visits[..entries], &leaf_visits[..leaves]);
-                learned.rebuild_sampling();
+                let leaves = learned.leaf_count();
+                self.read_volume_tables(context, &mut learned, &leaf_visits[..leaves])?;
                 *volume = learned;
             }
             (DirectionalGuide::Mixture(mixture), Some(HostGuide::Mixture(learned))) => mixture.clone_from(learned),

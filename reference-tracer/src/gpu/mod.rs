@@ -318,15 +318,15 @@ impl GpuTracer {
         }
         encoder.copy_buffer_to_buffer(&self.image, 0, &self.image_readback, 0, self.image.size());
         encoder.copy_buffer_to_buffer(&self.counters, 0, &self.counters_readback, 0, 16);
-        let refitting = self.params.guide_learns != 0 && self.host.is_some();
-        if let (true, Some(host)) = (refitting, &self.host) {
+        let learning = self.params.guide_learns != 0;
+        if let Some(host) = self.host.as_ref().filter(|_| learning) {
             let source = host.pass_readback(&self.guide);
             encoder.copy_buffer_to_buffer(source, 0, &self.host_readback, 0, self.host_readback.size());
         }
         queue.submit([encoder.finish()]);
         let image: Vec<[f32; 4]> = self.context.read(&self.image_readback)?;
         let counts: Vec<u32> = self.context.read(&self.counters_readback)?;
-        if let (true, Some(host)) = (refitting, self.host.as_mut()) {
+        if let Some(host) = self.host.as_mut().filter(|_| learning) {
             let words: Vec<u32> = self.context.read(&self.host_readback)?;
             host.refit(&words, &self.context, &self.guide, &mut self.params)?;
         }

@@ -47,7 +47,7 @@ fn visit_cell(cell: vec3<i32>, query: vec3<f32>, normal: vec3<f32>, best: Neares
 
 // ProbeLookup::nearest: the nearest probe whose normal is within the largest angle of
 // `normal`, within the search rings; NO_PROBE otherwise.
-fn locate(query: vec3<f32>, normal: vec3<f32>) -> u32 {
+fn hemisphere_locate(query: vec3<f32>, normal: vec3<f32>) -> u32 {
     var best: Nearest;
     best.probe = NO_PROBE;
     best.distance2 = INFINITY;
@@ -115,17 +115,22 @@ fn direction_in_patch(entry: u32, xi: vec2<f32>) -> vec3<f32> {
     return vec3<f32>(d.x * scale, d.y * scale, MIN_SAMPLED_COS);
 }
 
-fn grid_pdf(probe: u32, wi: vec3<f32>) -> f32 {
-    let entry = patch_of(to_local(frame_from_normal(probe_normal(probe)), wi));
-    if (entry >= params.guide_patches) { return 0.0; }
-    return patch_probability(probe, entry) / patch_solid_angle();
+// The patch of probe `region` holding world direction `wi`, or N (none).
+fn hemisphere_patch(region: u32, wi: vec3<f32>) -> u32 {
+    return patch_of(to_local(frame_from_normal(probe_normal(region)), wi));
 }
 
-fn grid_sample(probe: u32, u: vec2<f32>) -> GuideSample {
-    let c = invert_cdf(probe, u.x);
+fn hemisphere_pdf(region: u32, normal: vec3<f32>, wi: vec3<f32>) -> f32 {
+    let entry = hemisphere_patch(region, wi);
+    if (entry >= params.guide_patches) { return 0.0; }
+    return patch_probability(region, entry) / patch_solid_angle();
+}
+
+fn hemisphere_sample(region: u32, normal: vec3<f32>, u: vec2<f32>) -> GuideSample {
+    let c = invert_cdf(region, u.x);
     var s: GuideSample;
-    s.wi = to_world(frame_from_normal(probe_normal(probe)), direction_in_patch(c.entry, vec2<f32>(c.rest, u.y)));
-    s.pdf = patch_probability(probe, c.entry) / patch_solid_angle();
+    s.wi = to_world(frame_from_normal(probe_normal(region)), direction_in_patch(c.entry, vec2<f32>(c.rest, u.y)));
+    s.pdf = patch_probability(region, c.entry) / patch_solid_angle();
     return s;
 }
 
@@ -140,24 +145,8 @@ fn add_to_lambertian_sum(probe: u32, value: f32) {
     }
 }
 
-// The hooks of the guide dispatch (guide.wgsl): a region is a probe.
-
-fn hemisphere_locate(point: vec3<f32>, normal: vec3<f32>) -> u32 {
-    return locate(point, normal);
-}
-
-fn hemisphere_pdf(region: u32, normal: vec3<f32>, wi: vec3<f32>) -> f32 {
-    return grid_pdf(region, wi);
-}
-
-fn hemisphere_sample(region: u32, normal: vec3<f32>, u: vec2<f32>) -> GuideSample {
-    return grid_sample(region, u);
-}
-
-// The patch of probe `region` holding world direction `wi`, or N (none).
-fn hemisphere_patch(region: u32, wi: vec3<f32>) -> u32 {
-    return patch_of(to_local(frame_from_normal(probe_normal(region)), wi));
-}
+// The learning hooks of the guide dispatch (guide.wgsl); hemisphere_locate, _pdf and
+// _sample are above.
 
 // Eq. (1), the probe's Lambertian sum kept current.
 fn hemisphere_learn(region: u32, wi: vec3<f32>, goal: f32, pdf: f32) {

@@ -18,7 +18,7 @@ fn log1p(x: f32) -> f32 {
 }
 
 // GaussianMixture::locate: the grid cell, then the normal's dominant axis and sign.
-fn mixture_region(p: vec3<f32>, normal: vec3<f32>) -> u32 {
+fn mixture_locate(p: vec3<f32>, normal: vec3<f32>) -> u32 {
     if (!all(abs(p) < vec3<f32>(INFINITY))) { return NO_PROBE; }
     let cell = grid_cell(p).index;
     var side = 0u;
@@ -113,12 +113,8 @@ fn add_to_batch(index: u32, value: f32) {
     }
 }
 
-// The hooks of the guide dispatch (guide.wgsl): a region is a cell's normal side;
-// mixture_pdf and mixture_sample above are its pdf and sample.
-
-fn mixture_locate(point: vec3<f32>, normal: vec3<f32>) -> u32 {
-    return mixture_region(point, normal);
-}
+// The learning hooks of the guide dispatch (guide.wgsl): a region is a cell's normal
+// side; mixture_locate, _pdf and _sample are above.
 
 // GaussianMixture::update_sampled: v = target / sampling pdf, split over the lobes by
 // their responsibilities into the region's batch sums.

@@ -7,8 +7,8 @@ const LEAF_BIT: u32 = 0x80000000u;
 const MAX_TREE_DEPTH: u32 = 32u;
 
 // IrradianceVolume::leaf_at: the grid cell holding `p` (the nearest one outside), then
-// down by octants; NO_PROBE for a non-finite point.
-fn volume_leaf(p: vec3<f32>) -> u32 {
+// down by octants; NO_PROBE for a non-finite point. Position alone finds the leaf.
+fn volume_locate(p: vec3<f32>, normal: vec3<f32>) -> u32 {
     if (!all(abs(p) < vec3<f32>(INFINITY))) { return NO_PROBE; }
     let g = grid_cell(p);
     var offset = clamp(g.scaled - vec3<f32>(g.cell), vec3<f32>(0.0), vec3<f32>(1.0));
@@ -103,11 +103,8 @@ fn sh_cosine_integral(leaf: u32, normal: vec3<f32>) -> f32 {
     return max(sum, 0.0);
 }
 
-// The hooks of the guide dispatch (guide.wgsl): a region is a leaf.
-
-fn volume_locate(point: vec3<f32>, normal: vec3<f32>) -> u32 {
-    return volume_leaf(point);
-}
+// The learning hooks of the guide dispatch (guide.wgsl): a region is a leaf;
+// volume_locate, _pdf and _sample are above.
 
 fn volume_learn(region: u32, wi: vec3<f32>, goal: f32, pdf: f32) {
     _ = table_learn(region, sphere_patch_of(wi), goal);
