@@ -8,6 +8,7 @@ use guiding_core::{
 
 use crate::directional_guide::{DirectionalGuide, DirectionalGuideSettings};
 use crate::integrator::{Method, Roulette};
+use crate::mirror_images::{light_mirror_images, MIRROR_IMAGE_SHARE};
 use crate::render::RenderSettings;
 use crate::scene::Scene;
 
@@ -61,7 +62,9 @@ impl SessionLearners {
         let guided = method.uses_guide();
         if guided && integrator.focal_probability > 0.0 && self.focal_guide.is_none() {
             let (low, high) = scene.bounds();
-            let focal = FocalGuide::new(low, high, self.focal_settings).map_err(|e| e.to_string())?;
+            let mut focal = FocalGuide::new(low, high, self.focal_settings).map_err(|e| e.to_string())?;
+            let images = light_mirror_images(scene, integrator.focal_mirror_alpha);
+            focal.set_known_boxes(&images, MIRROR_IMAGE_SHARE).map_err(|e| e.to_string())?;
             self.focal_guide = Some(focal);
         }
         let learns_share = guided && integrator.learned_guide_share && self.guide.is_some();

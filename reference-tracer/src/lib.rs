@@ -26,6 +26,7 @@ pub mod learners;
 pub mod lights;
 pub mod material;
 pub mod metrics;
+pub mod mirror_images;
 pub mod output;
 pub mod peer;
 pub mod plan;

@@ -20,13 +20,17 @@
 //! - Each cell of a coarse grid learns which boxes its vertices' light actually came
 //!   through (`BoxCells`): from behind a wall, boxes out of sight through the gap are
 //!   drawn less often there.
+//! - Boxes can also be given (`KnownBox`): a light's mirror image behind a flat mirror is
+//!   a focal spot no segment passes through, which the octree cannot learn.
 
 mod box_cells;
 mod guide;
+mod known_boxes;
 mod lanes;
 mod merge;
 mod octree;
 mod settings;
 
 pub use guide::{FocalArrival, FocalBox, FocalGuide, FocalRecord, CANDIDATES};
+pub use known_boxes::{KnownBox, MAX_KNOWN_BOXES};
 pub use settings::{FocalGuideSettings, MAX_FOCAL_DEPTH};

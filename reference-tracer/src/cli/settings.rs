@@ -204,6 +204,7 @@ impl TraceOptions {
             nee_weighs_guide: false,
             guide_diffuse_lobes: self.guide_diffuse_lobes.unwrap_or(true),
             guide_min_alpha: self.guide_min_alpha.unwrap_or(DEFAULT_GUIDE_MIN_ALPHA),
+            focal_mirror_alpha: self.focal_mirror_alpha,
             learn: true,
             nee_kickstart: !light && self.nee_kickstart.unwrap_or(self.without_nee_defaults(method)),
             light_selection: plan.light_selection,

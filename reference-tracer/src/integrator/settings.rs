@@ -47,6 +47,9 @@ pub struct IntegratorSettings {
     /// With `guide_diffuse_lobes`: conductors at least this rough (GGX α) are guided,
     /// smoother ones left to their BSDF (a narrow lobe the guides cannot follow).
     pub guide_min_alpha: f32,
+    /// The focal guide aims also at the lights' mirror images behind flat conductors at
+    /// most this rough (GGX α; below 0: none), [`crate::mirror_images`].
+    pub focal_mirror_alpha: f32,
     /// Whether guided paths update the guide.
     pub learn: bool,
     /// Whether the guided method without next-event estimation (`Method::Guided`) runs
@@ -124,6 +127,7 @@ impl Default for IntegratorSettings {
             nee_weighs_guide: false,
             guide_diffuse_lobes: false,
             guide_min_alpha: 0.0,
+            focal_mirror_alpha: -1.0,
             learn: true,
             nee_kickstart: false,
             light_selection: LightSelection::Power,
