@@ -274,7 +274,7 @@ pub struct TraceOptions {
     /// Default 0.2: Veach Ajar (floor α 0.1), guided-nee at 60 s, relMSE 1.019 and 1.051
     /// (seeds 41, 42) against 1.25–1.54 without; scenes without such a plane render as
     /// before.
-    #[arg(long, default_value_t = DEFAULT_FOCAL_MIRROR_ALPHA, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = DEFAULT_FOCAL_MIRROR_ALPHA, allow_negative_numbers = true, value_parser = parse_finite)]
     pub(super) focal_mirror_alpha: f32,
     /// The guided method without next-event estimation (`guided`) runs it all the same in
     /// its learning passes (on, off): their images gain its light samples, and the guides
@@ -526,7 +526,7 @@ pub(super) fn parse_mapping(s: &str) -> Result<HemisphereMapping, String> {
     }
 }
 
-/// A share in (0, 1].
+/// A finite number ≥ 0.
 fn parse_non_negative(text: &str) -> Result<f32, String> {
     let value: f32 = text.parse().map_err(|_| format!("`{text}` is not a number"))?;
     if value.is_finite() && value >= 0.0 {
@@ -536,6 +536,13 @@ fn parse_non_negative(text: &str) -> Result<f32, String> {
     }
 }
 
+/// A finite number (NaN and infinities are refused).
+fn parse_finite(text: &str) -> Result<f32, String> {
+    let value: f32 = text.parse().map_err(|_| format!("`{text}` is not a number"))?;
+    value.is_finite().then_some(value).ok_or_else(|| format!("{value} is not finite"))
+}
+
+/// A share in (0, 1].
 fn parse_share(text: &str) -> Result<f64, String> {
     let share: f64 = text.parse().map_err(|_| format!("`{text}` is not a number"))?;
     if share > 0.0 && share <= 1.0 {

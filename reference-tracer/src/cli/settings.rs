@@ -316,6 +316,18 @@ mod tests {
     }
 
     #[test]
+    fn the_mirror_images_option_takes_finite_numbers_and_reaches_the_integrator() {
+        let alpha = |args: &[&str]| options(args).integrator(Method::GuidedNee, &plan()).focal_mirror_alpha;
+        assert_eq!(alpha(&[]), crate::mirror_images::DEFAULT_FOCAL_MIRROR_ALPHA);
+        assert_eq!(alpha(&["--focal-mirror-alpha", "-1"]), -1.0);
+        for bad in ["nan", "inf", "x"] {
+            let parsed = Command::try_parse_from(["lodestar", "--focal-mirror-alpha", bad]);
+            let error = parsed.err().map(|e| e.to_string()).unwrap_or_default();
+            assert!(error.contains("--focal-mirror-alpha"), "{bad}: {error}");
+        }
+    }
+
+    #[test]
     fn guided_without_nee_takes_its_own_defaults_on_the_cpu_only() {
         let cpu = options(&[]);
         let guided = cpu.integrator(Method::Guided, &plan());
