@@ -8,7 +8,7 @@
 //! known boxes ([`guiding_core::focal::KnownBox`]); each of its cells learns whether
 //! aiming at them pays from there.
 
-use std::collections::HashMap;
+use std::collections::{BTreeMap, HashMap};
 
 use glam::Vec3;
 use guiding_core::focal::{KnownBox, MAX_KNOWN_BOXES};
@@ -70,7 +70,8 @@ pub fn light_mirror_images(scene: &Scene, max_alpha: f32) -> Vec<KnownBox> {
 
 /// The planes of `scene` that near-mirror triangles cover widely, largest first.
 fn mirror_planes(scene: &Scene, max_alpha: f32, extent: f32) -> Vec<MirrorPlane> {
-    let mut planes: HashMap<[i64; 4], MirrorPlane> = HashMap::new();
+    // Ordered maps: the images come out in the same order every run, so renders repeat.
+    let mut planes: BTreeMap<[i64; 4], MirrorPlane> = BTreeMap::new();
     for (index, triangle) in scene.triangles.iter().enumerate() {
         let material = &scene.materials[scene.triangle_materials[index] as usize];
         let near_mirror = matches!(material.surface, Surface::Conductor { alpha, .. } if alpha <= max_alpha);
@@ -82,9 +83,8 @@ fn mirror_planes(scene: &Scene, max_alpha: f32, extent: f32) -> Vec<MirrorPlane>
         if normal[normal.abs().max_position()] < 0.0 {
             normal = -normal;
         }
-        let [a, b, c] = triangle.vertices;
-        let area = 0.5 * (b - a).cross(c - a).length();
-        let offset = normal.dot(a);
+        let area = triangle.area();
+        let offset = normal.dot(triangle.vertices[0]);
         if !(area > 0.0 && normal.is_finite() && offset.is_finite()) {
             continue;
         }
@@ -136,14 +136,14 @@ fn lights(scene: &Scene) -> Vec<Light> {
             parent[a] = b;
         }
     }
-    let mut lights: HashMap<usize, Light> = HashMap::new();
+    let mut lights: BTreeMap<usize, Light> = BTreeMap::new();
     for (k, &t) in emissive.iter().enumerate() {
         let light = lights.entry(root(&mut parent, k)).or_default();
-        let [a, b, c] = scene.triangles[t].vertices;
-        light.vertices.extend([a, b, c]);
+        let triangle = &scene.triangles[t];
+        light.vertices.extend(triangle.vertices);
         light.normals.push(scene.normals[t]);
         let emission = scene.materials[scene.triangle_materials[t] as usize].emission;
-        light.power += luminance(emission) * 0.5 * (b - a).cross(c - a).length() * std::f32::consts::PI;
+        light.power += luminance(emission) * triangle.area() * std::f32::consts::PI;
     }
     lights.into_values().filter(|l| l.power > 0.0 && l.power.is_finite()).collect()
 }
