@@ -6,7 +6,7 @@
 use alloc::vec::Vec;
 use core::sync::atomic::AtomicU32;
 
-use glam::Vec2;
+use glam::{Vec2, Vec4};
 
 use super::square::{ONE_BELOW, SQUARE_TO_SOLID_ANGLE};
 use crate::atomic_f32;
@@ -37,21 +37,22 @@ pub(crate) const NODE_BYTES: usize =
 /// ([`QuadNode::probability`]), or another set over the same nodes, indexed alike (the
 /// cosine product's).
 pub(crate) trait CellProbabilities {
-    /// The four cells' probabilities at arena index `node`.
-    fn cells(&self, node: usize) -> [f32; 4];
+    /// The four cells' probabilities at arena index `node`, in place: a descent reads
+    /// one of them by the cell it picked, a load from the node rather than from a copy.
+    fn cells(&self, node: usize) -> &[f32; 4];
 }
 
 impl CellProbabilities for [QuadNode] {
     #[inline]
-    fn cells(&self, node: usize) -> [f32; 4] {
-        self[node].probability
+    fn cells(&self, node: usize) -> &[f32; 4] {
+        &self[node].probability
     }
 }
 
 impl CellProbabilities for [[f32; 4]] {
     #[inline]
-    fn cells(&self, node: usize) -> [f32; 4] {
-        self[node]
+    fn cells(&self, node: usize) -> &[f32; 4] {
+        &self[node]
     }
 }
 
@@ -87,13 +88,18 @@ fn choose(u: &mut f32, a: f32, b: f32) -> bool {
 
 /// Picks one of a node's four cells by their probabilities `p` with `u` ∈ [0, 1) and
 /// rescales `u` to [0, 1) within the cell picked. One number picks among all four, so a
-/// level's pick waits on one comparison chain, not two (the second number's pick waited
-/// on the first's rescale); the division that rescales `u` is needed only two levels on.
-#[inline]
-fn pick_cell(u: &mut f32, p: [f32; 4]) -> usize {
-    let (c1, c2) = (p[0], p[0] + p[1]);
-    let c3 = c2 + p[2];
-    let total = c3 + p[3];
+/// level's pick waits on one comparison, not two (the second number's pick waited on the
+/// first's rescale); the division that rescales `u` is needed only two levels on.
+///
+/// Branch-free: the four lower edges are compared at once and the cell is the count of
+/// those at or below `u`·total. A coin flip per level is what a branch predictor cannot
+/// learn, and the descent's levels wait on each other.
+#[inline(always)]
+fn pick_cell(u: &mut f32, p: &[f32; 4]) -> usize {
+    let low_pair = p[0] + p[1];
+    // The lower edges (0, p₀, p₀+p₁, p₀+p₁+p₂), and the total added pairwise beside them.
+    let edges = Vec4::new(0.0, p[0], low_pair, low_pair + p[2]);
+    let total = low_pair + (p[2] + p[3]);
     if total.is_nan() || total <= 0.0 {
         // All empty, or damaged data: four equal cells.
         let cell = ((*u * 4.0) as usize).min(3);
@@ -101,14 +107,48 @@ fn pick_cell(u: &mut f32, p: [f32; 4]) -> usize {
         return cell;
     }
     let scaled = *u * total;
-    let mut cell = (scaled >= c1) as usize + (scaled >= c2) as usize + (scaled >= c3) as usize;
-    // u·total can round up onto the upper edge of the last cells when they are empty.
-    while cell > 0 && p[cell] <= 0.0 {
-        cell -= 1;
-    }
-    let low = [0.0, c1, c2, c3][cell];
+    // An edge counts where u·total reaches it and mass lies above it: the cells above
+    // the last one holding mass share its upper edge, the total, so u·total rounding up
+    // onto it picks no empty cell.
+    let reached = Vec4::splat(scaled).cmpge(edges) & edges.cmplt(Vec4::splat(total));
+    // The edges reached are a prefix (they ascend), the first always among them.
+    let cell = (reached.bitmask() | 1).ilog2() as usize;
+    let low = Vec4::select(reached, edges, Vec4::ZERO).max_element();
     *u = ((scaled - low) / p[cell]).clamp(0.0, ONE_BELOW);
     cell
+}
+
+/// One level of a descent: the cell `cell` of `node` picked, with probability
+/// `probability`; moves the cell's corner and size on and multiplies the density by the
+/// cell's. Returns the child node, or `None` where the cell is a leaf.
+#[inline(always)]
+fn step_into(nodes: &[QuadNode], node: usize, cell: usize, probability: f32, walk: &mut Walk) -> Option<usize> {
+    walk.density *= 4.0 * probability;
+    walk.size *= 0.5;
+    walk.origin += Vec2::new((cell & 1) as f32, (cell >> 1) as f32) * walk.size;
+    match nodes[node].child[cell] {
+        0 => None,
+        child => Some(child as usize),
+    }
+}
+
+/// Where a sampling descent stands: the current cell's corner and side in the square,
+/// and the density of the cells picked so far relative to uniform.
+struct Walk {
+    origin: Vec2,
+    size: f32,
+    density: f32,
+}
+
+impl Walk {
+    /// The point of the leaf cell reached at `u` within it, kept inside the cell
+    /// (origin + u·size can round up onto its far edge), and its density.
+    #[inline(always)]
+    fn finish(&self, u: Vec2) -> (Vec2, f32) {
+        let end = self.origin + Vec2::splat(self.size);
+        let below = Vec2::new(f32::from_bits(end.x.to_bits() - 1), f32::from_bits(end.y.to_bits() - 1));
+        ((self.origin + u * self.size).min(below), self.density)
+    }
 }
 
 /// A point of the square drawn with the tree's density from `u` ∈ [0, 1)², and the
@@ -133,37 +173,33 @@ pub(crate) fn sample_square_by<P: CellProbabilities + ?Sized>(
     u: Vec2,
     half: Option<bool>,
 ) -> (Vec2, f32) {
-    let (mut origin, mut size, mut node, mut density) = (Vec2::ZERO, 1.0f32, root as usize, 1.0f32);
-    let mut u = [u.x, u.y];
-    let mut turn = 0usize;
-    let mut forced = half;
+    let mut walk = Walk { origin: Vec2::ZERO, size: 1.0, density: 1.0 };
+    let (mut ux, mut uy) = (u.x, u.y);
+    let mut node = root as usize;
+    if let Some(high) = half {
+        // The half's side is given: v picks between its two cells, and u takes the
+        // next level.
+        let p = probabilities.cells(node);
+        let ix = high as usize;
+        let cell = ix + 2 * choose(&mut uy, p[ix], p[ix + 2]) as usize;
+        match step_into(nodes, node, cell, p[cell], &mut walk) {
+            Some(child) => node = child,
+            None => return walk.finish(Vec2::new(ux, uy)),
+        }
+    }
+    // Two levels per turn, u's then v's: each number stays in its own register.
     loop {
-        let probability = probabilities.cells(node);
-        let cell = match forced.take() {
-            // The half's side is given: the number v picks between its two cells, and u
-            // takes the next level.
-            Some(high) => {
-                let ix = high as usize;
-                let [low, high] = [probability[ix], probability[ix + 2]];
-                ix + 2 * choose(&mut u[1], low, high) as usize
-            }
-            None => {
-                let cell = pick_cell(&mut u[turn], probability);
-                turn ^= 1;
-                cell
-            }
-        };
-        density *= 4.0 * probability[cell];
-        size *= 0.5;
-        origin += Vec2::new((cell & 1) as f32, (cell >> 1) as f32) * size;
-        match nodes[node].child[cell] {
-            0 => {
-                // Kept inside the cell drawn: origin + u·size can round up onto its far edge.
-                let end = origin + Vec2::splat(size);
-                let below = Vec2::new(f32::from_bits(end.x.to_bits() - 1), f32::from_bits(end.y.to_bits() - 1));
-                return ((origin + Vec2::new(u[0], u[1]) * size).min(below), density);
-            }
-            child => node = child as usize,
+        let p = probabilities.cells(node);
+        let cell = pick_cell(&mut ux, p);
+        match step_into(nodes, node, cell, p[cell], &mut walk) {
+            Some(child) => node = child,
+            None => return walk.finish(Vec2::new(ux, uy)),
+        }
+        let p = probabilities.cells(node);
+        let cell = pick_cell(&mut uy, p);
+        match step_into(nodes, node, cell, p[cell], &mut walk) {
+            Some(child) => node = child,
+            None => return walk.finish(Vec2::new(ux, uy)),
         }
     }
 }
@@ -171,7 +207,7 @@ pub(crate) fn sample_square_by<P: CellProbabilities + ?Sized>(
 /// The share of the tree's mass in the half u ≥ 1/2 (`high`) or u < 1/2 of the square.
 #[inline]
 pub(crate) fn half_mass<P: CellProbabilities + ?Sized>(probabilities: &P, root: u32, high: bool) -> f32 {
-    let [p0, p1, p2, p3] = probabilities.cells(root as usize);
+    let [p0, p1, p2, p3] = *probabilities.cells(root as usize);
     if high {
         p1 + p3
     } else {
@@ -489,7 +525,7 @@ mod tests {
         ];
         for (p, u, expected) in cases {
             let mut rescaled = u;
-            let cell = pick_cell(&mut rescaled, p);
+            let cell = pick_cell(&mut rescaled, &p);
             assert_eq!(cell, expected, "{p:?} at {u}");
             assert!((0.0..1.0).contains(&rescaled), "{p:?} at {u} rescaled to {rescaled}");
         }
@@ -500,7 +536,7 @@ mod tests {
         let n = 100_000;
         for i in 0..n {
             let mut u = (i as f32 + 0.5) / n as f32;
-            let cell = pick_cell(&mut u, p);
+            let cell = pick_cell(&mut u, &p);
             counts[cell] += 1;
             means[cell] += u as f64;
         }
