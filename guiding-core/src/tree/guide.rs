@@ -13,8 +13,9 @@ use super::distribution::TreeDistribution;
 use super::quadtree::{self, EpochBlend, QuadNode, RefitRule, NODE_BYTES};
 use super::records::TreeRecords;
 use super::settings::SpatialDirectionalTreeSettings;
-use super::spatial::{locate_leaf, split_leaf, Parent, SpatialNode, LEAF, SPATIAL_NODE_BYTES};
+use super::spatial::{descend_to_leaf, split_leaf, unit_position, Parent, SpatialNode, LEAF, SPATIAL_NODE_BYTES};
 use super::square::{axis_square, SQUARE_TO_SOLID_ANGLE};
+use super::top_grid::TopGrid;
 use crate::atomic_f32;
 use crate::distribution::MIN_SAMPLED_COS_THETA;
 use crate::error::Error;
@@ -114,8 +115,11 @@ pub struct SpatialDirectionalTree {
     /// Building sums Σ target/pdf, four per quadtree node (f32 bits).
     pub(crate) sums: Vec<AtomicU32>,
     /// Per quadtree node, its cells' probabilities under the cosine product (derived
-    /// from `quad` by [`refresh_cosine`](Self::refresh_cosine); never serialized).
+    /// from `quad` by [`refresh_derived`](Self::refresh_derived); never serialized).
     pub(crate) cosine: Vec<[f32; 4]>,
+    /// Where locates start (derived from `spatial` by
+    /// [`refresh_derived`](Self::refresh_derived); never serialized).
+    pub(crate) top: TopGrid,
     pub(crate) epoch: u32,
     /// Records of the completed epochs.
     pub(crate) accepted_before: u64,
@@ -166,12 +170,13 @@ impl SpatialDirectionalTree {
             quad: alloc::vec![QuadNode::UNIFORM; trees],
             sums: (0..4 * trees).map(|_| atomic_f32::new(0.0)).collect(),
             cosine: Vec::new(),
+            top: TopGrid::default(),
             epoch: 0,
             accepted_before: 0,
             rejected_non_finite: AtomicU32::new(0),
             rejected_negative: AtomicU32::new(0),
         };
-        tree.refresh_cosine();
+        tree.refresh_derived();
         Ok(tree)
     }
 
@@ -258,12 +263,14 @@ impl SpatialDirectionalTree {
         self.quad = out;
         self.sums = (0..self.quad.len() * 4).map(|_| atomic_f32::new(0.0)).collect();
         self.leaf_counts = (0..self.leaves.len()).map(|_| LeafCounts::default()).collect();
-        self.refresh_cosine();
+        self.refresh_derived();
     }
 
-    /// Recomputes the cosine product's cell probabilities from the quadtrees after every
-    /// change to them; none where the settings leave the product off.
-    pub(crate) fn refresh_cosine(&mut self) {
+    /// Recomputes what is derived from the trees after every change to them: the cosine
+    /// product's cell probabilities (none where the settings leave the product off) and
+    /// the top grid locates start from.
+    pub(crate) fn refresh_derived(&mut self) {
+        self.top = TopGrid::build(&self.spatial, &self.spatial_roots);
         self.cosine = if self.settings.cosine_product {
             super::cosine::cosine_probabilities(&self.quad, self.leaves.iter().map(|leaf| leaf.root))
         } else {
@@ -442,6 +449,7 @@ impl Clone for SpatialDirectionalTree {
             quad: self.quad.clone(),
             sums: copy(&self.sums),
             cosine: self.cosine.clone(),
+            top: self.top.clone(),
             epoch: self.epoch,
             accepted_before: self.accepted_before,
             rejected_non_finite: AtomicU32::new(self.rejected_non_finite.load(Ordering::Relaxed)),
@@ -460,7 +468,9 @@ impl Guide for SpatialDirectionalTree {
         }
         let tree = if self.settings.trees_per_axis { normal.abs().max_position() } else { 0 };
         let root = *self.spatial_roots.get(tree)?;
-        let (leaf, local) = locate_leaf(&self.spatial, root, self.low, self.inverse_extent, position)?;
+        let p = unit_position(self.low, self.inverse_extent, position)?;
+        let (start, p) = self.top.start(tree, root, p);
+        let (leaf, local) = descend_to_leaf(&self.spatial, start, p);
         let split_axis = self.leaves.get(leaf as usize)?.extent.max_position();
         Some(TreeRegion { leaf, normal, upper_half: local[split_axis] >= 0.5 })
     }
@@ -614,7 +624,7 @@ impl Guide for SpatialDirectionalTree {
         self.split_busy_leaves(self.settings.split_threshold(total_weight));
         self.sums = (0..self.quad.len() * 4).map(|_| atomic_f32::new(0.0)).collect();
         self.leaf_counts = (0..self.leaves.len()).map(|_| LeafCounts::default()).collect();
-        self.refresh_cosine();
+        self.refresh_derived();
     }
 
     fn stats(&self) -> GuideStats {

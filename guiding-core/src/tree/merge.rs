@@ -143,7 +143,7 @@ impl SpatialDirectionalTree {
         self.leaves = leaves;
         self.sums = (0..quad.len() * 4).map(|_| atomic_f32::new(0.0)).collect();
         self.quad = quad;
-        self.refresh_cosine();
+        self.refresh_derived();
         self.epoch = self.epoch.max(other.epoch);
         self.accepted_before = self.accepted_before.saturating_add(other.accepted_before);
         add_rejected_counts(

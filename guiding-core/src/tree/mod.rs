@@ -24,6 +24,7 @@ mod serialize;
 mod settings;
 mod spatial;
 mod square;
+mod top_grid;
 
 pub use distribution::TreeDistribution;
 pub use guide::{SpatialDirectionalTree, TreeRegion};

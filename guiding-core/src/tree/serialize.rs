@@ -190,13 +190,14 @@ pub(crate) fn from_bytes(bytes: &[u8]) -> Result<SpatialDirectionalTree, Error> 
         quad,
         sums,
         cosine: Vec::new(),
+        top: Default::default(),
         epoch,
         accepted_before,
         rejected_non_finite: AtomicU32::new(rejected_non_finite),
         rejected_negative: AtomicU32::new(rejected_negative),
     };
     validate(&tree)?;
-    tree.refresh_cosine();
+    tree.refresh_derived();
     Ok(tree)
 }
 

@@ -20,26 +20,23 @@ pub(crate) struct SpatialNode {
     pub(crate) axis: u32,
 }
 
-/// Bytes one inner node costs.
-pub(crate) const SPATIAL_NODE_BYTES: usize = core::mem::size_of::<SpatialNode>();
+/// Bytes one inner node costs, with the cells of the top grid it pays for.
+pub(crate) const SPATIAL_NODE_BYTES: usize =
+    core::mem::size_of::<SpatialNode>() + super::top_grid::TOP_GRID_BYTES_PER_NODE;
 
-/// The leaf holding `position` (scene units), given the box's low corner and the
-/// reciprocal of its extent, and the position within the leaf's box (its unit cube);
-/// `None` for a non-finite position. Points outside the box belong to the nearest leaf.
+/// `position` (scene units) in the box's unit cube, given the box's low corner and the
+/// reciprocal of its extent, clamped into [0, 1) (points outside belong to the nearest
+/// leaf); `None` for a non-finite position.
 #[inline]
-pub(crate) fn locate_leaf(
-    nodes: &[SpatialNode],
-    root: u32,
-    low: Vec3,
-    inverse_extent: Vec3,
-    position: Vec3,
-) -> Option<(u32, Vec3)> {
+pub(crate) fn unit_position(low: Vec3, inverse_extent: Vec3, position: Vec3) -> Option<Vec3> {
     let p = (position - low) * inverse_extent;
-    if !p.is_finite() {
-        return None;
-    }
-    let mut p = p.clamp(Vec3::ZERO, Vec3::splat(ONE_BELOW));
-    let mut reference = root;
+    p.is_finite().then(|| p.clamp(Vec3::ZERO, Vec3::splat(ONE_BELOW)))
+}
+
+/// The leaf below the node `reference` (a node index, or `LEAF | leaf`) holding `p`,
+/// given in that node's unit cube, and `p` in the leaf's unit cube.
+#[inline]
+pub(crate) fn descend_to_leaf(nodes: &[SpatialNode], mut reference: u32, mut p: Vec3) -> (u32, Vec3) {
     while reference & LEAF == 0 {
         let node = &nodes[reference as usize];
         // Selects, not an indexed store and load: the point stays in registers.
@@ -62,7 +59,7 @@ pub(crate) fn locate_leaf(
         );
         reference = node.child[high as usize];
     }
-    Some((reference & !LEAF, p))
+    (reference & !LEAF, p)
 }
 
 /// Where a leaf hangs: the node and side whose child reference names it, or the root.
@@ -120,7 +117,9 @@ mod tests {
         split_leaf(&mut nodes, &mut roots, Parent::Node { node: first, side: 1 }, 1, 2, 1);
         let root = roots[0];
         let (low, inverse) = (Vec3::splat(-1.0), Vec3::splat(0.5));
-        let at = |x: f32, y: f32| locate_leaf(&nodes, root, low, inverse, Vec3::new(x, y, 0.0)).map(|(leaf, _)| leaf);
+        let at = |x: f32, y: f32| {
+            unit_position(low, inverse, Vec3::new(x, y, 0.0)).map(|p| descend_to_leaf(&nodes, root, p).0)
+        };
         assert_eq!(at(-0.5, 0.7), Some(0));
         assert_eq!(at(0.5, -0.7), Some(1));
         assert_eq!(at(0.5, 0.7), Some(2));
