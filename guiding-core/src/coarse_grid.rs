@@ -50,6 +50,25 @@ impl CoarseGrid {
         let (x, y, z) = ((local.x as u32).min(nx - 1), (local.y as u32).min(ny - 1), (local.z as u32).min(nz - 1));
         Some((x + nx * (y + ny * z)) as usize)
     }
+
+    /// The cell holding `point` (clamped into the grid) numbered with the coordinate along
+    /// world axis `axis` (0, 1 or 2) varying slowest: the cells of one layer across that
+    /// axis (a wall facing along it) are then consecutive. Each axis numbers all cells
+    /// once, from 0 to [`len`](Self::len); `None` for a non-finite point.
+    #[inline]
+    pub(crate) fn cell_in_layers(&self, point: Vec3, axis: u32) -> Option<usize> {
+        if !point.is_finite() {
+            return None;
+        }
+        let local = ((point - self.low) * self.cells_per_unit).max(Vec3::ZERO);
+        let [nx, ny, nz] = self.cells;
+        let (x, y, z) = ((local.x as u32).min(nx - 1), (local.y as u32).min(ny - 1), (local.z as u32).min(nz - 1));
+        Some(match axis {
+            0 => y + ny * (z + nz * x),
+            1 => x + nx * (z + nz * y),
+            _ => x + nx * (y + ny * z),
+        } as usize)
+    }
 }
 
 #[cfg(test)]
@@ -64,6 +83,22 @@ mod tests {
         assert_eq!(grid.cell(Vec3::new(3.5, 1.5, 0.5)), Some(7));
         assert_eq!(grid.cell(Vec3::new(-9.0, 9.0, 0.5)), Some(4));
         assert_eq!(grid.cell(Vec3::NAN), None);
+        // Numbered in layers across each axis: every cell once, and a layer consecutive.
+        for axis in 0..3 {
+            let mut seen = [false; 8];
+            for (x, y, z) in [(0.5, 0.5, 0.5), (1.5, 0.5, 0.5), (2.5, 0.5, 0.5), (3.5, 0.5, 0.5)]
+                .into_iter()
+                .flat_map(|(x, y, z)| [(x, y, z), (x, y + 1.0, z)])
+            {
+                let cell = grid.cell_in_layers(Vec3::new(x, y, z), axis).unwrap();
+                assert!(!seen[cell], "cell {cell} numbered twice along axis {axis}");
+                seen[cell] = true;
+            }
+        }
+        let wall: alloc::vec::Vec<usize> =
+            (0..2).map(|y| grid.cell_in_layers(Vec3::new(2.5, y as f32 + 0.5, 0.5), 0).unwrap()).collect();
+        assert_eq!(wall, [4, 5], "the layer x = 2 is cells 4 and 5");
+        assert_eq!(grid.cell_in_layers(Vec3::NAN, 1), None);
         let err = CoarseGrid::new(Vec3::ONE, Vec3::ZERO, 4).unwrap_err();
         assert!(alloc::format!("{err}").contains("bounds"));
     }
