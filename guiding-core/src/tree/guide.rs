@@ -15,7 +15,7 @@ use super::records::TreeRecords;
 use super::settings::SpatialDirectionalTreeSettings;
 use super::spatial::{descend_to_leaf, split_leaf, unit_position, Parent, SpatialNode, LEAF, SPATIAL_NODE_BYTES};
 use super::square::{axis_square, SQUARE_TO_SOLID_ANGLE};
-use super::top_grid::TopGrid;
+use super::top_grid::{TopGrid, TOP_GRID_BYTES_PER_NODE};
 use crate::atomic_f32;
 use crate::distribution::MIN_SAMPLED_COS_THETA;
 use crate::error::Error;
@@ -426,10 +426,11 @@ impl SpatialDirectionalTree {
     }
 }
 
-/// Bytes of a tree with these node and leaf counts.
+/// Bytes of a tree with these node and leaf counts (each inner node paying for its share
+/// of the top grid).
 pub(crate) fn bytes_for(spatial_nodes: usize, leaves: usize, quad_nodes: usize) -> usize {
     core::mem::size_of::<SpatialDirectionalTree>()
-        + spatial_nodes * SPATIAL_NODE_BYTES
+        + spatial_nodes * (SPATIAL_NODE_BYTES + TOP_GRID_BYTES_PER_NODE)
         + leaves * LEAF_BYTES
         + quad_nodes * NODE_BYTES
 }

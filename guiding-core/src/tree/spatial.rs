@@ -20,9 +20,8 @@ pub(crate) struct SpatialNode {
     pub(crate) axis: u32,
 }
 
-/// Bytes one inner node costs, with the cells of the top grid it pays for.
-pub(crate) const SPATIAL_NODE_BYTES: usize =
-    core::mem::size_of::<SpatialNode>() + super::top_grid::TOP_GRID_BYTES_PER_NODE;
+/// Bytes one inner node costs.
+pub(crate) const SPATIAL_NODE_BYTES: usize = core::mem::size_of::<SpatialNode>();
 
 /// `position` (scene units) in the box's unit cube, given the box's low corner and the
 /// reciprocal of its extent, clamped into [0, 1) (points outside belong to the nearest
