@@ -95,7 +95,7 @@ pub use focal::{FocalArrival, FocalGuide, FocalGuideSettings, FocalRecord};
 pub use hemisphere::{HemisphereGrid, HemisphereGridSettings, HemisphereMapping, PatchLayout, ProbeId, ProbeSet};
 #[cfg(feature = "lights")]
 pub use lights::{
-    GateCell, LightCell, LightChoice, LightGuide, LightGuideSettings, LightUpdateRule, NextEventGate,
+    GateCell, LightCell, LightChoice, LightGuide, LightGuideSettings, LightRecords, LightUpdateRule, NextEventGate,
     NextEventGateSettings,
 };
 #[cfg(feature = "mixture")]

@@ -110,6 +110,19 @@ impl LightGuide {
         self.grid.cell(position).map(LightCell)
     }
 
+    /// The table index of (`cell`, `light`), or `None` where either is out of range.
+    #[inline]
+    pub(super) fn entry(&self, cell: LightCell, light: u32) -> Option<usize> {
+        let in_range = (light as usize) < self.lights && (cell.0 as usize) < self.cell_count();
+        in_range.then(|| cell.0 as usize * self.lights + light as usize)
+    }
+
+    /// Entries in the tables: cells × lights.
+    #[inline]
+    pub(super) fn entry_count(&self) -> usize {
+        self.shots.len()
+    }
+
     fn row(&self, cell: LightCell) -> core::ops::Range<usize> {
         let start = cell.0 as usize * self.lights;
         start..start + self.lights

@@ -6,10 +6,12 @@
 
 mod gate;
 mod guide;
+mod records;
 mod serialize;
 mod settings;
 
 pub use gate::{GateCell, NextEventGate, NextEventGateSettings};
 pub use guide::{LightCell, LightChoice, LightGuide};
+pub use records::LightRecords;
 pub use serialize::{FORMAT_VERSION as LIGHT_GUIDE_FORMAT_VERSION, STRUCTURE_TAG as LIGHT_GUIDE_TAG};
 pub use settings::{LightGuideSettings, LightUpdateRule};

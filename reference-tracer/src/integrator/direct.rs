@@ -4,7 +4,7 @@
 
 use glam::Vec3;
 use guiding_core::environment::{EnvCell, EnvSample};
-use guiding_core::{DirectionalDistribution, Guide, Hit, Intersector, LightCell, Pcg32, Ray};
+use guiding_core::{DirectionalDistribution, Guide, Hit, Intersector, LightCell, LightRecords, Pcg32, Ray};
 
 use super::counters::{PathCounters, GATE_PATH_STRIDE};
 use super::method::LightSelection;
@@ -81,7 +81,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         cells: NeeCells,
         (distribution, guide_share, focal_share): (Option<&G::Distribution<'_>>, f32, f32),
         rng: &mut Pcg32,
-        clock: &mut GuideClock,
+        (clock, light_records): (&mut GuideClock, &mut LightRecords),
         counters: &mut PathCounters,
     ) -> DirectLight {
         let SurfaceInteraction { point, geometric_normal, wo, ref material, ref shading } = *surface;
@@ -119,7 +119,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         } else {
             let Some((light, probability)) = self.select_light(cells.light, u_select) else { return nothing };
             let Some(s) = self.scene.lights.sample_point(light, point, u) else {
-                self.learn_light(cells, light, 0.0, false, counters.paths);
+                self.learn_light(cells, light, (0.0, false), counters.paths, light_records);
                 return nothing;
             };
             chosen = Some((light, s.pdf));
@@ -134,7 +134,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         let f = material.eval(shading, wo, wi);
         if f == Vec3::ZERO {
             if let Some((light, _)) = chosen {
-                self.learn_light(cells, light, 0.0, false, counters.paths);
+                self.learn_light(cells, light, (0.0, false), counters.paths, light_records);
             }
             if let Some((cell, sample)) = tile {
                 self.learn_environment(cell, &sample, Vec3::ZERO);
@@ -156,7 +156,8 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         let occluded = transmittance <= 0.0;
         if let Some((light, point_pdf)) = chosen {
             // Eq. (3)'s ‖C‖∞: the unshadowed contribution of the whole light.
-            self.learn_light(cells, light, (f * emitted / point_pdf).max_element(), !occluded, counters.paths);
+            let contribution = (f * emitted / point_pdf).max_element();
+            self.learn_light(cells, light, (contribution, !occluded), counters.paths, light_records);
         }
         if let Some((cell, sample)) = tile {
             self.learn_environment(cell, &sample, f * transmittance);
@@ -200,12 +201,20 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         NeeCells { light, gate: gate.map(|(_, cell)| cell), probability }
     }
 
-    /// Teaches one shadow ray from a vertex in `cells` to `light`: the light guide's V
-    /// where lights are selected as learned, and (in learning passes, from one path in
-    /// [`GATE_PATH_STRIDE`]) the gate's count.
-    pub(super) fn learn_light(&self, cells: NeeCells, light: u32, contribution: f32, unoccluded: bool, path: u64) {
+    /// Teaches one shadow ray from a vertex in `cells` to `light`, its `contribution`
+    /// and whether it was `unoccluded`: the light guide's V where lights are selected as
+    /// learned (into the thread's `records`, learned between passes), and (in learning
+    /// passes, from one path in [`GATE_PATH_STRIDE`]) the gate's count.
+    pub(super) fn learn_light(
+        &self,
+        cells: NeeCells,
+        light: u32,
+        (contribution, unoccluded): (f32, bool),
+        path: u64,
+        records: &mut LightRecords,
+    ) {
         if let (Some(guide), Some(cell)) = (self.light_guide, cells.light) {
-            guide.update(cell, light, contribution, unoccluded);
+            guide.record(records, cell, light, contribution, unoccluded);
         }
         if let (Some(gate), Some(cell)) = (self.gate, cells.gate) {
             if self.settings.learn && path % GATE_PATH_STRIDE == 0 {

@@ -5,8 +5,8 @@
 use glam::{Vec2, Vec3};
 use guiding_core::{
     EfficiencyRoulette, EnvTileGuide, FocalArrival, FocalGuide, GateCell, Guide, Hit, IntegralEstimator, Intersector,
-    LightCell, LightGuide, NextEventGate, PathRecorder, Pcg32, Ray, RouletteCell, RouletteImage, SampledDirection,
-    ScatteringFunction, StrategyArrival, StrategyShares,
+    LightCell, LightGuide, LightRecords, NextEventGate, PathRecorder, Pcg32, Ray, RouletteCell, RouletteImage,
+    SampledDirection, ScatteringFunction, StrategyArrival, StrategyShares,
 };
 
 use super::counters::PathCounters;
@@ -48,6 +48,9 @@ pub struct PathScratch<R, B = ()> {
     /// The directional guide's records of this thread's paths in the pass, for
     /// [`Guide::splat`] after it.
     pub records: B,
+    /// The light guide's records of this thread's shadow rays in the pass, for
+    /// [`LightGuide::splat`](guiding_core::LightGuide::splat) after it.
+    pub light_records: LightRecords,
     pub(super) path: PathRecorder<R, VertexStrategies>,
     /// The path's unoccluded light samples, where it learns from them
     /// (`IntegratorSettings::nee_kickstart`).
@@ -63,6 +66,7 @@ impl<R, B: Default> Default for PathScratch<R, B> {
     fn default() -> Self {
         Self {
             records: B::default(),
+            light_records: LightRecords::default(),
             path: PathRecorder::default(),
             light_samples: Vec::new(),
             roulette_vertices: Vec::new(),

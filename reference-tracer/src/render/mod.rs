@@ -20,7 +20,7 @@ use crate::schedule::{Schedule, Step, Training};
 
 mod passes;
 
-use passes::{camera_pass, splat_pass, vpl_pass, SplatGroup};
+use passes::{camera_pass, splat_pass, vpl_pass, SplatGroup, WorkerRecords};
 
 /// Training passes after which the iterative schedule may stop training where guiding
 /// idles (the end of the iteration of 8 passes).
@@ -230,8 +230,9 @@ pub fn render<I: Intersector, G: Guide>(
     let scene_tracer = PathTracer::<I, G>::new(scene, intersector, settings.integrator);
     // What the efficiency-aware roulette weighs paths against.
     let mut image_estimates = ImageEstimates::default();
-    // The workers' records for the directional guide, kept across passes for their room.
-    let mut guide_records: Vec<G::Records> = Vec::new();
+    // The workers' records for the directional and the light guide, kept across passes
+    // for their room.
+    let mut worker_records: Vec<WorkerRecords<G::Records>> = Vec::new();
     loop {
         let pass = traced;
         traced += 1;
@@ -257,7 +258,7 @@ pub fn render<I: Intersector, G: Guide>(
         } else if settings.integrator.method.gathers_virtual_lights() {
             vpl_pass(&tracer, &mut film, pass_seed)
         } else {
-            camera_pass(&tracer, &mut film, &image_estimates, pass_seed, &mut guide_records)
+            camera_pass(&tracer, &mut film, &image_estimates, pass_seed, &mut worker_records)
         };
         film.end_pass();
         statistics.add_pass(pass_sum, width * height, counters);
@@ -265,9 +266,14 @@ pub fn render<I: Intersector, G: Guide>(
         let rebuild = Instant::now();
         // The guide learns the pass's records before anything refits it (so none is stale).
         if let Some(guide) = guide.as_deref_mut() {
-            for records in &mut guide_records {
-                let left_out = guide.splat(records);
+            for records in &mut worker_records {
+                let left_out = guide.splat(&mut records.guide);
                 debug_assert_eq!(left_out, 0, "records splatted after a refit");
+            }
+        }
+        if let Some(light_guide) = light_guide.as_deref_mut() {
+            for records in &mut worker_records {
+                light_guide.splat(&mut records.lights);
             }
         }
         let step = match settings.schedule {

@@ -6,7 +6,7 @@
 use std::sync::Mutex;
 
 use glam::Vec3;
-use guiding_core::{Guide, Intersector, PathRecorder, Pcg32};
+use guiding_core::{Guide, Intersector, LightRecords, PathRecorder, Pcg32};
 use rayon::prelude::*;
 
 use crate::film::Film;
@@ -15,20 +15,22 @@ use crate::integrator::{BidirectionalScratch, PathCounters, PathScratch, PathTra
 
 /// One camera path per pixel, added to `film`; the pass's counters and radiance sum.
 /// `image_estimates` tells the efficiency-aware roulette what each pixel is expected to
-/// be. The workers' guide records of the pass come back in `records` (whose buffers they
-/// took up, so their room is reused), for [`Guide::splat`].
+/// be. The workers' records of the pass come back in `records` (whose buffers they took
+/// up, so their room is reused), for [`Guide::splat`] and
+/// [`LightGuide::splat`](guiding_core::LightGuide::splat).
 pub(super) fn camera_pass<I: Intersector, G: Guide>(
     tracer: &PathTracer<'_, I, G>,
     film: &mut Film,
     image_estimates: &ImageEstimates,
     pass_seed: u64,
-    records: &mut Vec<G::Records>,
+    records: &mut Vec<WorkerRecords<G::Records>>,
 ) -> (PathCounters, [f64; 3]) {
     let width = film.width();
     let pool = Mutex::new(std::mem::take(records));
     let scratch = || {
         let mut scratch = PathScratch::default();
-        scratch.records = pool.lock().unwrap_or_else(|poisoned| poisoned.into_inner()).pop().unwrap_or_default();
+        let taken = pool.lock().unwrap_or_else(|poisoned| poisoned.into_inner()).pop().unwrap_or_default();
+        (scratch.records, scratch.light_records) = (taken.guide, taken.lights);
         ReturningScratch { scratch, pool: &pool }
     };
     let pass = pixel_pass(film, pass_seed, scratch, |worker, (x, y), rng, counters| {
@@ -40,17 +42,27 @@ pub(super) fn camera_pass<I: Intersector, G: Guide>(
     pass
 }
 
-/// A worker's scratch space, whose guide records go back to the pass's `pool` when the
-/// worker is done with it.
+/// A worker's records of a pass: the directional guide's and the light guide's.
+#[derive(Default)]
+pub(super) struct WorkerRecords<B> {
+    /// For [`Guide::splat`].
+    pub(super) guide: B,
+    /// For [`LightGuide::splat`](guiding_core::LightGuide::splat).
+    pub(super) lights: LightRecords,
+}
+
+/// A worker's scratch space, whose records go back to the pass's `pool` when the worker
+/// is done with it.
 struct ReturningScratch<'a, R, B: Default> {
     scratch: PathScratch<R, B>,
-    pool: &'a Mutex<Vec<B>>,
+    pool: &'a Mutex<Vec<WorkerRecords<B>>>,
 }
 
 impl<R, B: Default> Drop for ReturningScratch<'_, R, B> {
     fn drop(&mut self) {
-        let records = std::mem::take(&mut self.scratch.records);
-        self.pool.lock().unwrap_or_else(|poisoned| poisoned.into_inner()).push(records);
+        let guide = std::mem::take(&mut self.scratch.records);
+        let lights = std::mem::take(&mut self.scratch.light_records);
+        self.pool.lock().unwrap_or_else(|poisoned| poisoned.into_inner()).push(WorkerRecords { guide, lights });
     }
 }
 
