@@ -14,7 +14,8 @@ use crate::update_rule::{classify_target, UpdateOutcome};
 use core::sync::atomic::Ordering;
 
 /// One thread's shadow rays of a pass, per (cell, light) entry of a [`LightGuide`]: made
-/// once per thread and kept from pass to pass (its tables stop growing after the first).
+/// once per thread and kept from pass to pass (its tables, 16 bytes per entry, stop
+/// growing after the first).
 ///
 /// ```
 /// use guiding_core::{glam::Vec3, LightGuide, LightGuideSettings, LightRecords};
@@ -45,8 +46,8 @@ impl LightRecords {
         self.touched.is_empty()
     }
 
-    /// Counts one shadow ray at `entry` of a guide of `entries` entries, and `target`
-    /// as an update (`Some`) or only a visible one (`None` with `visible`).
+    /// Counts one shadow ray at `entry` of a guide of `entries` entries, and what it
+    /// teaches there (`learned`).
     #[inline]
     fn add(&mut self, entries: usize, entry: usize, learned: Learned) {
         if self.shots.len() != entries {
