@@ -14,6 +14,17 @@ use crate::update_rule::{classify_target, UpdateOutcome};
 
 use super::settings::{LightGuideSettings, LightUpdateRule, ENTRY_BYTES, MAX_LIGHTS};
 
+/// What one shadow ray teaches an entry under the guide's rule.
+#[derive(Clone, Copy)]
+pub(super) enum Learned {
+    /// A target for the running average.
+    Target(f32),
+    /// One more visible shadow ray (the visibility ratio).
+    Visible,
+    /// Only the shadow ray itself.
+    Nothing,
+}
+
 /// A cell of a [`LightGuide`]'s grid: the region [`LightGuide::locate`] returns.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct LightCell(pub u32);
@@ -151,25 +162,36 @@ impl LightGuide {
         if light as usize >= self.lights {
             return UpdateOutcome::OutsideDomain;
         }
-        let contribution = match classify_target(contribution) {
-            Ok(c) => c,
-            Err(rejected) => {
-                self.rejected.fetch_add(1, Ordering::Relaxed);
-                return rejected;
-            }
+        let learned = match self.learned(contribution, unoccluded) {
+            Ok(learned) => learned,
+            Err(rejected) => return rejected,
         };
         let index = self.row(cell).start + light as usize;
         atomic_f32::increment_saturating(&self.shots[index]);
-        let learn = |target: f32| atomic_f32::running_average(&self.values[index], &self.updates[index], target);
-        match (self.settings.rule, unoccluded) {
-            (LightUpdateRule::UnoccludedAverage, true) => learn(contribution),
-            (LightUpdateRule::MeanContribution, _) => learn(if unoccluded { contribution } else { 0.0 }),
-            (LightUpdateRule::VisibilityRatio, true) => {
+        match learned {
+            Learned::Target(target) => atomic_f32::running_average(&self.values[index], &self.updates[index], target),
+            Learned::Visible => {
                 atomic_f32::increment_saturating(&self.updates[index]);
             }
-            _ => {}
+            Learned::Nothing => {}
         }
         UpdateOutcome::Accepted
+    }
+
+    /// What one shadow ray teaches an entry under the guide's rule, shared by
+    /// [`update`](Self::update) and [`record`](Self::record); a rejected contribution
+    /// (NaN, infinite, negative) is counted and its outcome returned.
+    #[inline]
+    pub(super) fn learned(&self, contribution: f32, unoccluded: bool) -> Result<Learned, UpdateOutcome> {
+        let contribution = classify_target(contribution).inspect_err(|_| {
+            self.rejected.fetch_add(1, Ordering::Relaxed);
+        })?;
+        Ok(match (self.settings.rule, unoccluded) {
+            (LightUpdateRule::UnoccludedAverage, true) => Learned::Target(contribution),
+            (LightUpdateRule::MeanContribution, _) => Learned::Target(if unoccluded { contribution } else { 0.0 }),
+            (LightUpdateRule::VisibilityRatio, true) => Learned::Visible,
+            _ => Learned::Nothing,
+        })
     }
 
     /// Adds what `other` learned (another process or thread of the same scene, e.g. a

@@ -7,11 +7,10 @@
 
 use alloc::vec::Vec;
 
-use super::guide::LightGuide;
+use super::guide::{Learned, LightGuide};
 use super::settings::LightUpdateRule;
 use crate::atomic_f32;
-use crate::update_rule::{classify_target, UpdateOutcome};
-use core::sync::atomic::Ordering;
+use crate::update_rule::UpdateOutcome;
 
 /// One thread's shadow rays of a pass, per (cell, light) entry of a [`LightGuide`]: made
 /// once per thread and kept from pass to pass (its tables, 16 bytes per entry, stop
@@ -72,17 +71,6 @@ impl LightRecords {
     }
 }
 
-/// What one shadow ray teaches an entry under the guide's rule.
-#[derive(Clone, Copy)]
-enum Learned {
-    /// A target for the running average.
-    Target(f32),
-    /// One more visible shadow ray (the visibility ratio).
-    Visible,
-    /// Only the shadow ray itself.
-    Nothing,
-}
-
 impl LightGuide {
     /// [`update`](Self::update) into a thread's own `records`: the same checks and
     /// outcome, learned by the guide at [`splat`](Self::splat).
@@ -96,18 +84,9 @@ impl LightGuide {
         unoccluded: bool,
     ) -> UpdateOutcome {
         let Some(entry) = self.entry(cell, light) else { return UpdateOutcome::OutsideDomain };
-        let contribution = match classify_target(contribution) {
-            Ok(c) => c,
-            Err(rejected) => {
-                self.rejected.fetch_add(1, Ordering::Relaxed);
-                return rejected;
-            }
-        };
-        let learned = match (self.settings.rule, unoccluded) {
-            (LightUpdateRule::UnoccludedAverage, true) => Learned::Target(contribution),
-            (LightUpdateRule::MeanContribution, _) => Learned::Target(if unoccluded { contribution } else { 0.0 }),
-            (LightUpdateRule::VisibilityRatio, true) => Learned::Visible,
-            _ => Learned::Nothing,
+        let learned = match self.learned(contribution, unoccluded) {
+            Ok(learned) => learned,
+            Err(rejected) => return rejected,
         };
         records.add(self.entry_count(), entry, learned);
         UpdateOutcome::Accepted
@@ -145,8 +124,9 @@ impl LightGuide {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::lights::{LightCell, LightGuideSettings, LightUpdateRule};
+    use crate::lights::{LightCell, LightGuideSettings};
     use crate::low_discrepancy::Pcg32;
+    use core::sync::atomic::Ordering;
     use glam::Vec3;
 
     /// Recording and splatting learns what updating in place learns: the same counts, and
