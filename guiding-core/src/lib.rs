@@ -21,6 +21,8 @@ mod atan2;
     allow(dead_code)
 )]
 mod atomic_f32;
+#[cfg(any(feature = "lights", feature = "env"))]
+mod average_records;
 #[cfg_attr(
     not(any(feature = "hemisphere", feature = "mixture", feature = "volume", feature = "tree")),
     allow(dead_code)

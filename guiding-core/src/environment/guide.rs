@@ -153,22 +153,33 @@ impl EnvTileGuide {
     /// are rejected and counted; a cell, lobe or lobe density that no sample of this guide
     /// has is `OutsideDomain`.
     pub fn update(&self, cell: EnvCell, sample: &EnvSample, integrand: f32) -> UpdateOutcome {
+        match self.target(cell, sample, integrand) {
+            Ok((index, target)) => {
+                atomic_f32::running_average(&self.values[index], &self.updates[index], target);
+                UpdateOutcome::Accepted
+            }
+            Err(outcome) => outcome,
+        }
+    }
+
+    /// The entry `sample` from `cell` teaches and its target (see [`update`](Self::update)),
+    /// or the outcome that refuses it; a rejected integrand is counted.
+    #[inline]
+    pub(super) fn target(
+        &self,
+        cell: EnvCell,
+        sample: &EnvSample,
+        integrand: f32,
+    ) -> Result<(usize, f32), UpdateOutcome> {
         let (cell, lobe, conditional_pdf) = (cell.0 as usize, sample.lobe.0 as usize, sample.lobe_pdf);
         let valid_pdf = conditional_pdf.is_finite() && conditional_pdf > 0.0;
         if cell >= self.grid.cell_count() || lobe >= self.lobes || !valid_pdf {
-            return UpdateOutcome::OutsideDomain;
+            return Err(UpdateOutcome::OutsideDomain);
         }
-        let integrand = match classify_target(integrand) {
-            Ok(value) => value,
-            Err(rejected) => {
-                self.rejected.fetch_add(1, Ordering::Relaxed);
-                return rejected;
-            }
-        };
-        let target = integrand / conditional_pdf;
-        let index = cell * self.lobes + lobe;
-        atomic_f32::running_average(&self.values[index], &self.updates[index], target);
-        UpdateOutcome::Accepted
+        let integrand = classify_target(integrand).inspect_err(|_| {
+            self.rejected.fetch_add(1, Ordering::Relaxed);
+        })?;
+        Ok((cell * self.lobes + lobe, integrand / conditional_pdf))
     }
 
     /// Adds what `other` learned (another process of the same scene) to this guide and
@@ -236,6 +247,12 @@ impl EnvTileGuide {
     /// The sun it samples, if any.
     pub fn sun(&self) -> Option<&SunDisk> {
         self.sun.as_ref()
+    }
+
+    /// Entries in the tables: cells × lobes.
+    #[inline]
+    pub(super) fn entry_count(&self) -> usize {
+        self.values.len()
     }
 
     /// Lobes per cell: tiles, plus one for the sun.

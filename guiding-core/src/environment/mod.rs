@@ -5,12 +5,14 @@
 
 mod guide;
 pub mod lat_long;
+mod records;
 mod serialize;
 mod settings;
 mod sun;
 mod tiles;
 
 pub use guide::{EnvCell, EnvDistribution, EnvLobe, EnvSample, EnvTileGuide};
+pub use records::EnvRecords;
 pub use serialize::{FORMAT_VERSION as ENV_TILE_GUIDE_FORMAT_VERSION, STRUCTURE_TAG as ENV_TILE_GUIDE_TAG};
 pub use settings::EnvTileGuideSettings;
 pub use sun::SunDisk;

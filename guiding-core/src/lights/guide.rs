@@ -7,23 +7,13 @@ use alloc::vec::Vec;
 use glam::Vec3;
 
 use crate::atomic_f32;
+use crate::average_records::Learned;
 use crate::cdf::{build_cdf, cdf_probability, sample_cdf};
 use crate::cell_grid::CellGrid;
 use crate::error::Error;
 use crate::update_rule::{classify_target, UpdateOutcome};
 
 use super::settings::{LightGuideSettings, LightUpdateRule, ENTRY_BYTES, MAX_LIGHTS};
-
-/// What one shadow ray teaches an entry under the guide's rule.
-#[derive(Clone, Copy)]
-pub(super) enum Learned {
-    /// A target for the running average.
-    Target(f32),
-    /// One more visible shadow ray (the visibility ratio).
-    Visible,
-    /// Only the shadow ray itself.
-    Nothing,
-}
 
 /// A cell of a [`LightGuide`]'s grid: the region [`LightGuide::locate`] returns.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -170,7 +160,7 @@ impl LightGuide {
         atomic_f32::increment_saturating(&self.shots[index]);
         match learned {
             Learned::Target(target) => atomic_f32::running_average(&self.values[index], &self.updates[index], target),
-            Learned::Visible => {
+            Learned::Count => {
                 atomic_f32::increment_saturating(&self.updates[index]);
             }
             Learned::Nothing => {}
@@ -189,7 +179,7 @@ impl LightGuide {
         Ok(match (self.settings.rule, unoccluded) {
             (LightUpdateRule::UnoccludedAverage, true) => Learned::Target(contribution),
             (LightUpdateRule::MeanContribution, _) => Learned::Target(if unoccluded { contribution } else { 0.0 }),
-            (LightUpdateRule::VisibilityRatio, true) => Learned::Visible,
+            (LightUpdateRule::VisibilityRatio, true) => Learned::Count,
             _ => Learned::Nothing,
         })
     }

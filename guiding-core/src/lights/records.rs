@@ -5,11 +5,9 @@
 //! tables to the guide between passes. The selection a pass reads is rebuilt only between
 //! passes, so the pass draws the same lights either way.
 
-use alloc::vec::Vec;
-
-use super::guide::{Learned, LightGuide};
+use super::guide::LightGuide;
 use super::settings::LightUpdateRule;
-use crate::atomic_f32;
+use crate::average_records::AverageRecords;
 use crate::update_rule::UpdateOutcome;
 
 /// One thread's shadow rays of a pass, per (cell, light) entry of a [`LightGuide`]: made
@@ -30,44 +28,12 @@ use crate::update_rule::UpdateOutcome;
 /// assert!(guide.probability(cell, 0) > guide.probability(cell, 1));
 /// ```
 #[derive(Clone, Debug, Default)]
-pub struct LightRecords {
-    /// Per entry: Σ of the targets learned, the updates and the shadow rays.
-    sums: Vec<f64>,
-    updates: Vec<u32>,
-    shots: Vec<u32>,
-    /// The entries with a shadow ray since the last splat, each once.
-    touched: Vec<u32>,
-}
+pub struct LightRecords(AverageRecords);
 
 impl LightRecords {
     /// Whether nothing is held.
     pub fn is_empty(&self) -> bool {
-        self.touched.is_empty()
-    }
-
-    /// Counts one shadow ray at `entry` of a guide of `entries` entries, and what it
-    /// teaches there (`learned`).
-    #[inline]
-    fn add(&mut self, entries: usize, entry: usize, learned: Learned) {
-        if self.shots.len() != entries {
-            // A first record, or another guide's: the tables fit this one.
-            self.sums = alloc::vec![0.0; entries];
-            self.updates = alloc::vec![0; entries];
-            self.shots = alloc::vec![0; entries];
-            self.touched.clear();
-        }
-        if self.shots[entry] == 0 {
-            self.touched.push(entry as u32);
-        }
-        self.shots[entry] = self.shots[entry].saturating_add(1);
-        match learned {
-            Learned::Target(target) => {
-                self.sums[entry] += target as f64;
-                self.updates[entry] = self.updates[entry].saturating_add(1);
-            }
-            Learned::Visible => self.updates[entry] = self.updates[entry].saturating_add(1),
-            Learned::Nothing => {}
-        }
+        self.0.is_empty()
     }
 }
 
@@ -88,7 +54,7 @@ impl LightGuide {
             Ok(learned) => learned,
             Err(rejected) => return rejected,
         };
-        records.add(self.entry_count(), entry, learned);
+        records.0.add(self.entry_count(), entry, learned);
         UpdateOutcome::Accepted
     }
 
@@ -97,33 +63,19 @@ impl LightGuide {
     /// step ((v·n + Σ) / (n + m)), and the counts add. Rebuild the selection after it.
     /// Records made for a guide of another size are dropped.
     pub fn splat(&mut self, records: &mut LightRecords) {
-        if records.shots.len() == self.entry_count() {
-            for &entry in &records.touched {
-                let i = entry as usize;
-                let shots = self.shots[i].get_mut();
-                *shots = shots.saturating_add(records.shots[i]);
-                let (m, sum) = (records.updates[i], records.sums[i]);
-                if m > 0 {
-                    let n = *self.updates[i].get_mut();
-                    if self.settings.rule != LightUpdateRule::VisibilityRatio {
-                        let value = atomic_f32::load(&self.values[i]) as f64;
-                        let mean = (value * n as f64 + sum) / (n as f64 + m as f64);
-                        *self.values[i].get_mut() = (mean.min(f32::MAX as f64) as f32).to_bits();
-                    }
-                    *self.updates[i].get_mut() = n.saturating_add(m);
-                }
-                records.sums[i] = 0.0;
-                records.updates[i] = 0;
-                records.shots[i] = 0;
-            }
-        }
-        records.touched.clear();
+        let averages = self.settings.rule != LightUpdateRule::VisibilityRatio;
+        let shots = &mut self.shots;
+        records.0.splat(&mut self.values, &mut self.updates, averages, |entry, made| {
+            let shots = shots[entry].get_mut();
+            *shots = shots.saturating_add(made);
+        });
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::atomic_f32;
     use crate::lights::{LightCell, LightGuideSettings};
     use crate::low_discrepancy::Pcg32;
     use core::sync::atomic::Ordering;

@@ -3,12 +3,14 @@
 //! the light samples teach the light, environment and gate learners.
 
 use glam::Vec3;
-use guiding_core::environment::{EnvCell, EnvSample};
+use guiding_core::environment::{EnvCell, EnvRecords, EnvSample};
 use guiding_core::{DirectionalDistribution, Guide, Hit, Intersector, LightCell, LightRecords, Pcg32, Ray};
 
 use super::counters::{PathCounters, GATE_PATH_STRIDE};
 use super::method::LightSelection;
-use super::tracer::{nee_partner_pdf, GuideClock, LightSampleRecord, NeeCells, PathTracer, SurfaceInteraction};
+use super::tracer::{
+    nee_partner_pdf, GuideClock, LightSampleRecord, NeeCells, NeeRecords, PathTracer, SurfaceInteraction,
+};
 use crate::color::luminance;
 use crate::environment::Environment;
 use crate::sampling::power_heuristic;
@@ -81,7 +83,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         cells: NeeCells,
         (distribution, guide_share, focal_share): (Option<&G::Distribution<'_>>, f32, f32),
         rng: &mut Pcg32,
-        (clock, light_records): (&mut GuideClock, &mut LightRecords),
+        (clock, records): (&mut GuideClock, &mut NeeRecords),
         counters: &mut PathCounters,
     ) -> DirectLight {
         let SurfaceInteraction { point, geometric_normal, wo, ref material, ref shading } = *surface;
@@ -119,7 +121,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         } else {
             let Some((light, probability)) = self.select_light(cells.light, u_select) else { return nothing };
             let Some(s) = self.scene.lights.sample_point(light, point, u) else {
-                self.learn_light(cells, light, (0.0, false), counters.paths, light_records);
+                self.learn_light(cells, light, (0.0, false), counters.paths, &mut records.lights);
                 return nothing;
             };
             chosen = Some((light, s.pdf));
@@ -127,17 +129,17 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         };
         if !(light_pdf.is_finite() && light_pdf > 0.0) || emitted == Vec3::ZERO {
             if let Some((cell, sample)) = tile {
-                self.learn_environment(cell, &sample, Vec3::ZERO);
+                self.learn_environment(cell, &sample, Vec3::ZERO, &mut records.environment);
             }
             return nothing;
         }
         let f = material.eval(shading, wo, wi);
         if f == Vec3::ZERO {
             if let Some((light, _)) = chosen {
-                self.learn_light(cells, light, (0.0, false), counters.paths, light_records);
+                self.learn_light(cells, light, (0.0, false), counters.paths, &mut records.lights);
             }
             if let Some((cell, sample)) = tile {
-                self.learn_environment(cell, &sample, Vec3::ZERO);
+                self.learn_environment(cell, &sample, Vec3::ZERO, &mut records.environment);
             }
             return nothing;
         }
@@ -157,10 +159,10 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         if let Some((light, point_pdf)) = chosen {
             // Eq. (3)'s ‖C‖∞: the unshadowed contribution of the whole light.
             let contribution = (f * emitted / point_pdf).max_element();
-            self.learn_light(cells, light, (contribution, !occluded), counters.paths, light_records);
+            self.learn_light(cells, light, (contribution, !occluded), counters.paths, &mut records.lights);
         }
         if let Some((cell, sample)) = tile {
-            self.learn_environment(cell, &sample, f * transmittance);
+            self.learn_environment(cell, &sample, f * transmittance, &mut records.environment);
         }
         if occluded {
             return nothing;
@@ -226,12 +228,12 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
     /// Teaches the environment guide the shadow ray of `sample` from `cell`: `f` is the
     /// BSDF × cos θ there (zero when occluded); the sample's lobe learns ‖f·L‖∞ with L the
     /// radiance of its own light (the sun's for the sun lobe, the sky's for a tile).
-    pub(super) fn learn_environment(&self, cell: EnvCell, sample: &EnvSample, f: Vec3) {
+    pub(super) fn learn_environment(&self, cell: EnvCell, sample: &EnvSample, f: Vec3, records: &mut EnvRecords) {
         let (Some(guide), Some(environment)) = (self.environment_guide, &self.scene.environment) else { return };
         let radiance = match &environment.sun {
             Some(sun) if Some(sample.lobe) == guide.sun_lobe() => sun.radiance(sample.direction),
             _ => environment.sky.radiance(sample.direction),
         };
-        guide.update(cell, sample, (f * radiance).max_element());
+        guide.record(records, cell, sample, (f * radiance).max_element());
     }
 }

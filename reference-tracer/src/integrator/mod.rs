@@ -24,4 +24,4 @@ pub use settings::{
     IntegratorSettings, Roulette, DEFAULT_CONNECTION_ROULETTE, DEFAULT_GUIDE_MIN_ALPHA, DEFAULT_VPL_MIN_DISTANCE,
     DEFAULT_VPL_PATHS,
 };
-pub use tracer::{PathScratch, PathTracer, VertexStrategies};
+pub use tracer::{NeeRecords, PathScratch, PathTracer, VertexStrategies};

@@ -199,7 +199,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                         nee_cells,
                         (distribution.as_ref(), guide_share, focal_share),
                         rng,
-                        (clock, &mut scratch.light_records),
+                        (clock, &mut scratch.nee_records),
                         counters,
                     );
                     radiance += throughput * direct.radiance;

@@ -3,6 +3,7 @@
 //! scratch space of its paths.
 
 use glam::{Vec2, Vec3};
+use guiding_core::environment::EnvRecords;
 use guiding_core::{
     EfficiencyRoulette, EnvTileGuide, FocalArrival, FocalGuide, GateCell, Guide, Hit, IntegralEstimator, Intersector,
     LightCell, LightGuide, LightRecords, NextEventGate, PathRecorder, Pcg32, Ray, RouletteCell, RouletteImage,
@@ -42,15 +43,25 @@ pub struct VertexStrategies {
     pub(super) guide_arrival: Option<StrategyArrival>,
 }
 
+/// One thread's records of next-event estimation's learners in a pass, each added to its
+/// guide between passes instead of updating it at every shadow ray.
+#[derive(Clone, Debug, Default)]
+pub struct NeeRecords {
+    /// For [`LightGuide::splat`](guiding_core::LightGuide::splat).
+    pub lights: LightRecords,
+    /// For [`EnvTileGuide::splat`](guiding_core::EnvTileGuide::splat).
+    pub environment: EnvRecords,
+}
+
 /// Per-thread scratch space reused across paths (no allocation per path); `R` is the
 /// guide's region type, `B` its per-thread records ([`Guide::Records`]).
 pub struct PathScratch<R, B = ()> {
     /// The directional guide's records of this thread's paths in the pass, for
     /// [`Guide::splat`] after it.
     pub records: B,
-    /// The light guide's records of this thread's shadow rays in the pass, for
-    /// [`LightGuide::splat`](guiding_core::LightGuide::splat) after it.
-    pub light_records: LightRecords,
+    /// The light and environment guides' records of this thread's shadow rays in the
+    /// pass, splatted after it.
+    pub nee_records: NeeRecords,
     pub(super) path: PathRecorder<R, VertexStrategies>,
     /// The path's unoccluded light samples, where it learns from them
     /// (`IntegratorSettings::nee_kickstart`).
@@ -66,7 +77,7 @@ impl<R, B: Default> Default for PathScratch<R, B> {
     fn default() -> Self {
         Self {
             records: B::default(),
-            light_records: LightRecords::default(),
+            nee_records: NeeRecords::default(),
             path: PathRecorder::default(),
             light_samples: Vec::new(),
             roulette_vertices: Vec::new(),

@@ -273,7 +273,12 @@ pub fn render<I: Intersector, G: Guide>(
         }
         if let Some(light_guide) = light_guide.as_deref_mut() {
             for records in &mut worker_records {
-                light_guide.splat(&mut records.lights);
+                light_guide.splat(&mut records.nee.lights);
+            }
+        }
+        if let Some(environment_guide) = environment_guide.as_deref_mut() {
+            for records in &mut worker_records {
+                environment_guide.splat(&mut records.nee.environment);
             }
         }
         let step = match settings.schedule {

@@ -6,18 +6,18 @@
 use std::sync::Mutex;
 
 use glam::Vec3;
-use guiding_core::{Guide, Intersector, LightRecords, PathRecorder, Pcg32};
+use guiding_core::{Guide, Intersector, PathRecorder, Pcg32};
 use rayon::prelude::*;
 
 use crate::film::Film;
 use crate::image_estimates::ImageEstimates;
-use crate::integrator::{BidirectionalScratch, PathCounters, PathScratch, PathTracer};
+use crate::integrator::{BidirectionalScratch, NeeRecords, PathCounters, PathScratch, PathTracer};
 
 /// One camera path per pixel, added to `film`; the pass's counters and radiance sum.
 /// `image_estimates` tells the efficiency-aware roulette what each pixel is expected to
 /// be. The workers' records of the pass come back in `records` (whose buffers they took
-/// up, so their room is reused), for [`Guide::splat`] and
-/// [`LightGuide::splat`](guiding_core::LightGuide::splat).
+/// up, so their room is reused), for [`Guide::splat`] and the light and environment
+/// guides' splats.
 pub(super) fn camera_pass<I: Intersector, G: Guide>(
     tracer: &PathTracer<'_, I, G>,
     film: &mut Film,
@@ -30,7 +30,7 @@ pub(super) fn camera_pass<I: Intersector, G: Guide>(
     let scratch = || {
         let mut scratch = PathScratch::default();
         let taken = pool.lock().unwrap_or_else(|poisoned| poisoned.into_inner()).pop().unwrap_or_default();
-        (scratch.records, scratch.light_records) = (taken.guide, taken.lights);
+        (scratch.records, scratch.nee_records) = (taken.guide, taken.nee);
         ReturningScratch { scratch, pool: &pool }
     };
     let pass = pixel_pass(film, pass_seed, scratch, |worker, (x, y), rng, counters| {
@@ -42,13 +42,13 @@ pub(super) fn camera_pass<I: Intersector, G: Guide>(
     pass
 }
 
-/// A worker's records of a pass: the directional guide's and the light guide's.
+/// A worker's records of a pass: the directional guide's and next-event estimation's.
 #[derive(Default)]
 pub(super) struct WorkerRecords<B> {
     /// For [`Guide::splat`].
     pub(super) guide: B,
-    /// For [`LightGuide::splat`](guiding_core::LightGuide::splat).
-    pub(super) lights: LightRecords,
+    /// For the light and environment guides' splats.
+    pub(super) nee: NeeRecords,
 }
 
 /// A worker's scratch space, whose records go back to the pass's `pool` when the worker
@@ -61,8 +61,8 @@ struct ReturningScratch<'a, R, B: Default> {
 impl<R, B: Default> Drop for ReturningScratch<'_, R, B> {
     fn drop(&mut self) {
         let guide = std::mem::take(&mut self.scratch.records);
-        let lights = std::mem::take(&mut self.scratch.light_records);
-        self.pool.lock().unwrap_or_else(|poisoned| poisoned.into_inner()).push(WorkerRecords { guide, lights });
+        let nee = std::mem::take(&mut self.scratch.nee_records);
+        self.pool.lock().unwrap_or_else(|poisoned| poisoned.into_inner()).push(WorkerRecords { guide, nee });
     }
 }
 
