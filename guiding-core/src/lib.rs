@@ -90,7 +90,7 @@ pub use update_rule::{
 };
 
 #[cfg(feature = "env")]
-pub use environment::{EnvTileGuide, EnvTileGuideSettings};
+pub use environment::{EnvRecords, EnvTileGuide, EnvTileGuideSettings};
 #[cfg(feature = "focal")]
 pub use focal::{FocalArrival, FocalGuide, FocalGuideSettings, FocalRecord};
 #[cfg(feature = "hemisphere")]

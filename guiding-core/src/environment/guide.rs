@@ -151,7 +151,9 @@ impl EnvTileGuide {
     /// sun's for the sun). The target is integrand / p(direction | lobe), a one-sample
     /// estimate of the lobe's whole contribution. NaN, infinite and negative integrands
     /// are rejected and counted; a cell, lobe or lobe density that no sample of this guide
-    /// has is `OutsideDomain`.
+    /// has is `OutsideDomain`. Where many threads learn at once,
+    /// [`record`](Self::record) into each thread's [`EnvRecords`](super::EnvRecords) and
+    /// [`splat`](Self::splat) them between passes instead: no locked writes on shared lines.
     pub fn update(&self, cell: EnvCell, sample: &EnvSample, integrand: f32) -> UpdateOutcome {
         match self.target(cell, sample, integrand) {
             Ok((index, target)) => {

@@ -147,7 +147,10 @@ impl LightGuide {
     /// Learns from one shadow ray from `cell` to `light`: `unoccluded` says whether it
     /// arrived, `contribution` is ‖C‖∞ of the unshadowed contribution (radiance, the
     /// light's whole area: divide by the pdf of the point chosen on it). NaN, infinite
-    /// and negative contributions are rejected and counted.
+    /// and negative contributions are rejected and counted. Where many threads learn at
+    /// once, [`record`](Self::record) into each thread's [`LightRecords`](super::LightRecords)
+    /// and [`splat`](Self::splat) them between passes instead: no locked writes on shared
+    /// lines.
     pub fn update(&self, cell: LightCell, light: u32, contribution: f32, unoccluded: bool) -> UpdateOutcome {
         if light as usize >= self.lights {
             return UpdateOutcome::OutsideDomain;

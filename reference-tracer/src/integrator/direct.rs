@@ -225,9 +225,10 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         }
     }
 
-    /// Teaches the environment guide the shadow ray of `sample` from `cell`: `f` is the
-    /// BSDF × cos θ there (zero when occluded); the sample's lobe learns ‖f·L‖∞ with L the
-    /// radiance of its own light (the sun's for the sun lobe, the sky's for a tile).
+    /// Records the shadow ray of `sample` from `cell` for the environment guide (in the
+    /// thread's `records`, learned between passes): `f` is the BSDF × cos θ there (zero
+    /// when occluded); the sample's lobe learns ‖f·L‖∞ with L the radiance of its own light
+    /// (the sun's for the sun lobe, the sky's for a tile).
     pub(super) fn learn_environment(&self, cell: EnvCell, sample: &EnvSample, f: Vec3, records: &mut EnvRecords) {
         let (Some(guide), Some(environment)) = (self.environment_guide, &self.scene.environment) else { return };
         let radiance = match &environment.sun {
