@@ -152,14 +152,11 @@ impl LightGuide {
     /// and [`splat`](Self::splat) them between passes instead: no locked writes on shared
     /// lines.
     pub fn update(&self, cell: LightCell, light: u32, contribution: f32, unoccluded: bool) -> UpdateOutcome {
-        if light as usize >= self.lights {
-            return UpdateOutcome::OutsideDomain;
-        }
+        let Some(index) = self.entry(cell, light) else { return UpdateOutcome::OutsideDomain };
         let learned = match self.learned(contribution, unoccluded) {
             Ok(learned) => learned,
             Err(rejected) => return rejected,
         };
-        let index = self.row(cell).start + light as usize;
         atomic_f32::increment_saturating(&self.shots[index]);
         match learned {
             Learned::Target(target) => atomic_f32::running_average(&self.values[index], &self.updates[index], target),

@@ -105,6 +105,10 @@ mod tests {
                     assert_eq!(a, b);
                 }
                 assert_eq!(splatted.record(&mut records, LightCell(0), 7, 1.0, true), UpdateOutcome::OutsideDomain);
+                // A cell past the grid is outside too, for update as for record (no panic).
+                let past = LightCell(direct.cell_count() as u32);
+                assert_eq!(direct.update(past, 0, 1.0, true), UpdateOutcome::OutsideDomain);
+                assert_eq!(splatted.record(&mut records, past, 0, 1.0, true), UpdateOutcome::OutsideDomain);
                 splatted.splat(&mut records);
                 assert!(records.is_empty());
             }

@@ -230,8 +230,8 @@ pub fn render<I: Intersector, G: Guide>(
     let scene_tracer = PathTracer::<I, G>::new(scene, intersector, settings.integrator);
     // What the efficiency-aware roulette weighs paths against.
     let mut image_estimates = ImageEstimates::default();
-    // The workers' records for the directional and the light guide, kept across passes
-    // for their room.
+    // The workers' records for the directional, light and environment guides, kept
+    // across passes for their room.
     let mut worker_records: Vec<WorkerRecords<G::Records>> = Vec::new();
     loop {
         let pass = traced;
