@@ -327,7 +327,11 @@ pub struct TraceOptions {
     /// leave out what splitting adds, and it splits too often.
     #[arg(long, value_parser = parse_switch)]
     pub(super) splitting: Option<bool>,
-    /// --roulette efficiency: cells along the scene's longest side, 1..=128.
+    /// --roulette efficiency: cells along the scene's longest side, 1..=128. 32 measured
+    /// best on the living room 1280×720 (guided-nee with tiles, 60 s, seed 41, one run
+    /// each): relMSE × spp over paths/s 1.04e-5 against 1.13e-5 with 16 cells (per
+    /// sample 4.91 against 4.68, paths 3.05 vertices long against 3.35) and 1.13e-5 with
+    /// 64 (per sample 5.46).
     #[arg(long, default_value_t = 32)]
     pub(super) roulette_cells: u32,
     /// Guided methods: seconds of training passes whose samples are discarded (their
