@@ -73,11 +73,12 @@ impl AverageRecords {
         averages: bool,
         mut events: impl FnMut(usize, u32),
     ) {
-        if self.events.len() == values.len() && values.len() == updates.len() {
-            for &entry in &self.touched {
-                let i = entry as usize;
+        let fits = self.events.len() == values.len() && values.len() == updates.len();
+        for &entry in &self.touched {
+            let i = entry as usize;
+            let (m, sum) = (self.updates[i], self.sums[i]);
+            if fits {
                 events(i, self.events[i]);
-                let (m, sum) = (self.updates[i], self.sums[i]);
                 if m > 0 {
                     let n = *updates[i].get_mut();
                     if averages {
@@ -87,10 +88,12 @@ impl AverageRecords {
                     }
                     *updates[i].get_mut() = n.saturating_add(m);
                 }
-                self.sums[i] = 0.0;
-                self.updates[i] = 0;
-                self.events[i] = 0;
             }
+            // Emptied whether added or dropped: an entry left non-zero would never be
+            // touched again, and would hold its stale records for good.
+            self.sums[i] = 0.0;
+            self.updates[i] = 0;
+            self.events[i] = 0;
         }
         self.touched.clear();
     }

@@ -125,5 +125,14 @@ mod tests {
         large.splat(&mut records);
         assert!(records.is_empty());
         assert_eq!(large.updates.iter().map(|u| u.load(Ordering::Relaxed)).sum::<u32>(), 0);
+        // The dropped records leave nothing behind: the same records, made again for a
+        // guide of their own size, teach it exactly what updating in place teaches.
+        let (direct, mut splatted) = (guide(), guide());
+        assert_eq!(direct.update(cell, &s, 3.0), splatted.record(&mut records, cell, &s, 3.0));
+        splatted.splat(&mut records);
+        for i in 0..direct.values.len() {
+            assert_eq!(direct.updates[i].load(Ordering::Relaxed), splatted.updates[i].load(Ordering::Relaxed));
+            assert_eq!(atomic_f32::load(&direct.values[i]), atomic_f32::load(&splatted.values[i]), "entry {i}");
+        }
     }
 }
