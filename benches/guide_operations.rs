@@ -163,35 +163,40 @@ fn bench_tree(c: &mut Criterion) {
             black_box(tree.update_sampled(black_box(region), black_box(s.direction), black_box(0.5), s.pdf))
         })
     });
-    // Per-thread records: the push a vertex pays during the pass, and the splat that
-    // learns it between passes, timed apart (records made 4096 at a time, as a worker's
-    // share of a pass would be).
+    // Per-thread records: the push a vertex pays during the pass, the map its worker
+    // does after the pass (`prepare_splat`) and the splat that learns it between passes,
+    // timed apart (records made 4096 at a time, as a worker's share of a pass would be).
+    let regions: Vec<_> = records.iter().map(|r| r.0).collect();
+    let directions: Vec<_> = records.iter().map(|r| r.1.direction).collect();
+    let pdfs: Vec<_> = records.iter().map(|r| r.1.pdf).collect();
     let mut buffer = TreeRecords::default();
-    let mut time_records = |time_push: bool, iters: u64| {
-        let (mut pushes, mut splats) = (Duration::ZERO, Duration::ZERO);
+    let mut time_records = |phase: usize, iters: u64| {
+        let mut times = [Duration::ZERO; 3];
         let mut done = 0u64;
         while done < iters {
             let chunk = (iters - done).min(4096);
             let start = Instant::now();
             for _ in 0..chunk {
                 i = (i + 1) % count;
-                let (region, s) = records[i];
-                black_box(tree.record(&mut buffer, black_box(region), black_box(s.direction), black_box(0.5), s.pdf));
+                // Read from the arrays as a renderer reads its path's stored vertices
+                // (no black_box on them: it stores the direction in two parts that the
+                // push then loads across, a store-forwarding stall of a few ns).
+                black_box(tree.record(&mut buffer, regions[i], directions[i], 0.5, pdfs[i]));
             }
-            pushes += start.elapsed();
+            times[0] += start.elapsed();
+            let start = Instant::now();
+            tree.prepare_splat(black_box(&mut buffer));
+            times[1] += start.elapsed();
             let start = Instant::now();
             black_box(tree.splat(&mut buffer));
-            splats += start.elapsed();
+            times[2] += start.elapsed();
             done += chunk;
         }
-        if time_push {
-            pushes
-        } else {
-            splats
-        }
+        times[phase]
     };
-    c.bench_function("tree_record_push", |b| b.iter_custom(|iters| time_records(true, iters)));
-    c.bench_function("tree_record_splat", |b| b.iter_custom(|iters| time_records(false, iters)));
+    c.bench_function("tree_record_push", |b| b.iter_custom(|iters| time_records(0, iters)));
+    c.bench_function("tree_record_prepare", |b| b.iter_custom(|iters| time_records(1, iters)));
+    c.bench_function("tree_record_splat", |b| b.iter_custom(|iters| time_records(2, iters)));
     let stats = tree.stats();
     println!(
         "tree: {} leaves, {} directional nodes (deepest {}), {} bytes",

@@ -84,6 +84,15 @@ pub trait Guide: Sync + Sized {
         self.update_sampled(region, direction, target, pdf)
     }
 
+    /// Does the part of [`splat`](Self::splat)'s work on `records` that only reads the
+    /// guide (the tree maps each record's direction to its cell's square, four at a
+    /// time), so that it runs on the threads rather than in the serial splat: call it on
+    /// each thread's records after the pass, in parallel. Optional: the splat does what
+    /// was not done. The default does nothing.
+    fn prepare_splat(&self, records: &mut Self::Records) {
+        let _ = records;
+    }
+
     /// Learns a thread's `records` of the pass just traced and empties them (keeping
     /// their room). Call it for every thread's records after the pass and before
     /// [`rebuild_sampling`](Self::rebuild_sampling): records point into the shape the

@@ -299,6 +299,7 @@ impl SpatialDirectionalTree {
     /// What a record of `target` along unit `direction` (drawn with density `pdf`) in
     /// `region` adds to its cell: target/pdf (target²/pdf under the second moment); or the
     /// outcome that leaves it out (bad targets counted).
+    #[inline]
     pub(super) fn checked_weight(
         &self,
         region: TreeRegion,
@@ -313,7 +314,8 @@ impl SpatialDirectionalTree {
             };
             atomic_f32::increment_saturating(counter);
         })?;
-        let unit = direction.is_finite() && (direction.length_squared() - 1.0).abs() < 1e-3;
+        // A NaN or infinite component makes the length NaN or infinite: no unit then.
+        let unit = (direction.length_squared() - 1.0).abs() < 1e-3;
         if region.leaf as usize >= self.leaves.len() || !(unit && pdf.is_finite() && pdf > 0.0) {
             return Err(UpdateOutcome::OutsideDomain);
         }
@@ -510,9 +512,11 @@ impl Guide for SpatialDirectionalTree {
 
     type Records = TreeRecords;
 
-    /// Appends the record to the thread's `records`: the square point and the weight,
-    /// nothing written that other threads read. A leaf beyond what a record can name
-    /// (never within a realistic budget) learns in place.
+    /// Appends the record to the thread's `records`: the direction and the weight,
+    /// nothing written that other threads read (its square point is found later, see
+    /// [`TreeRecords`]). A leaf beyond what a record can name (never within a realistic
+    /// budget) learns in place.
+    #[inline]
     fn record(
         &self,
         records: &mut TreeRecords,
@@ -526,12 +530,15 @@ impl Guide for SpatialDirectionalTree {
         }
         match self.checked_weight(region, direction, target, pdf) {
             Ok(weight) => {
-                let axis = self.leaves[region.leaf as usize].axis;
-                records.push(self.epoch, region, axis_square(direction, axis), weight);
+                records.push(self.epoch, region, direction, weight);
                 UpdateOutcome::Accepted
             }
             Err(outcome) => outcome,
         }
+    }
+
+    fn prepare_splat(&self, records: &mut TreeRecords) {
+        self.map_records(records);
     }
 
     fn splat(&mut self, records: &mut TreeRecords) -> usize {

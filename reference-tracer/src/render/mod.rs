@@ -9,6 +9,7 @@ use guiding_core::{
     EfficiencyRoulette, EnvTileGuide, FocalGuide, Guide, HemisphereGrid, Intersector, LightGuide, NextEventGate,
     StrategyShares,
 };
+use rayon::prelude::*;
 
 use crate::film::{Combine, Film};
 use crate::image_estimates::ImageEstimates;
@@ -265,6 +266,10 @@ pub fn render<I: Intersector, G: Guide>(
         image_estimates.count_pass(&counters);
         let rebuild = Instant::now();
         // The guide learns the pass's records before anything refits it (so none is stale).
+        // The part of that which only reads the guide runs on every core first.
+        if let Some(guide) = guide.as_deref() {
+            worker_records.par_iter_mut().for_each(|records| guide.prepare_splat(&mut records.guide));
+        }
         if let Some(guide) = guide.as_deref_mut() {
             for records in &mut worker_records {
                 let left_out = guide.splat(&mut records.guide);
