@@ -218,6 +218,9 @@ mod tests {
         assert_eq!(tree.record(&mut records, region, Vec3::Y, f32::NAN, 1.0), UpdateOutcome::RejectedNonFinite);
         assert_eq!(tree.record(&mut records, region, Vec3::Y, -1.0, 1.0), UpdateOutcome::RejectedNegative);
         assert_eq!(tree.record(&mut records, region, Vec3::Y, 1.0, 0.0), UpdateOutcome::OutsideDomain);
+        for direction in [Vec3::new(f32::NAN, 0.0, 1.0), Vec3::new(0.0, f32::INFINITY, 0.0), Vec3::new(0.6, 0.0, 0.6)] {
+            assert_eq!(tree.record(&mut records, region, direction, 1.0, 1.0), UpdateOutcome::OutsideDomain);
+        }
         let elsewhere = TreeRegion { leaf: 5, ..region };
         assert_eq!(tree.record(&mut records, elsewhere, Vec3::Y, 1.0, 1.0), UpdateOutcome::OutsideDomain);
         assert!(records.is_empty());
