@@ -323,6 +323,16 @@ impl SpatialDirectionalTree {
         Ok((moment / pdf).min(f32::MAX))
     }
 
+    /// [`Guide::update_sampled`] for [`Guide::record`]'s rare leaf that a record cannot
+    /// name. Out of line, and given the direction's components: a direction passed on by
+    /// reference would keep every push's direction in memory, and the push's checks would
+    /// wait on loads across the two stores that put it there (a store-forwarding stall).
+    #[cold]
+    #[inline(never)]
+    fn update_in_place(&self, region: TreeRegion, x: f32, y: f32, z: f32, target: f32, pdf: f32) -> UpdateOutcome {
+        self.update_sampled(region, Vec3::new(x, y, z), target, pdf)
+    }
+
     /// The cell of leaf `leaf` (which exists) that `direction` falls in.
     #[inline]
     pub(super) fn leaf_cell_of(&self, leaf: usize, direction: Vec3) -> usize {
@@ -526,7 +536,7 @@ impl Guide for SpatialDirectionalTree {
         pdf: f32,
     ) -> UpdateOutcome {
         if !TreeRecords::can_name(region.leaf) {
-            return self.update_sampled(region, direction, target, pdf);
+            return self.update_in_place(region, direction.x, direction.y, direction.z, target, pdf);
         }
         match self.checked_weight(region, direction, target, pdf) {
             Ok(weight) => {
