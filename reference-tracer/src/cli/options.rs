@@ -191,7 +191,12 @@ pub struct TraceOptions {
     /// pixel without it, and no sample above one of the latest iteration). Door 160×120,
     /// 30 s, focal guided-nee, relMSE × spp, seeds 11 and 12: samples 12.82 and 12.60,
     /// inverse-variance 12.83 and 12.26, final 10.98 and 10.97 (of fewer samples: relMSE
-    /// 1.5 times); cornell 128²: 0.194/0.198 against 0.195/0.200. Samples stays.
+    /// 1.5 times); cornell 128²: 0.194/0.198 against 0.195/0.200. At f1941ce, guided-nee
+    /// (grid) at 60 s, relMSE × spp inverse-variance against samples: door 5.57 against
+    /// 5.94, cornell 0.256 against 0.254, living room (tiles) at seeds 41–43 4.54, 4.71
+    /// and 4.60 against 4.91, 5.01 and 4.97; but at 10 s the living room's relMSE was 1.6
+    /// to 1.9 × nee's against 0.97 to 1.52, since an iteration of one pass gets no weight.
+    /// Samples stays.
     #[arg(long, default_value = Combine::default().name(), value_parser = Combine::from_name)]
     pub(super) combine: Combine,
     /// The tree guide's memory budget, MiB.
