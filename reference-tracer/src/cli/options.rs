@@ -194,9 +194,11 @@ pub struct TraceOptions {
     /// 1.5 times); cornell 128²: 0.194/0.198 against 0.195/0.200. At f1941ce, guided-nee
     /// (grid) at 60 s, relMSE × spp inverse-variance against samples: door 5.57 against
     /// 5.94, cornell 0.256 against 0.254, living room (tiles) at seeds 41–43 4.54, 4.71
-    /// and 4.60 against 4.91, 5.01 and 4.97; but at 10 s the living room's relMSE was 1.6
-    /// to 1.9 × nee's against 0.97 to 1.52, since an iteration of one pass gets no weight.
-    /// Samples stays.
+    /// and 4.60 against 4.91, 5.01 and 4.97 (runs of one seed differ by about 4 %); but at
+    /// 10 s the living room's relMSE was 1.6 to 1.9 × nee's against 0.97 to 1.52: the
+    /// current iteration's first pass was left out of the image. Since it borrows the
+    /// iteration before's variance, 1.12 and 0.98 (seeds 42 and 43; at 60 s 4.90 and
+    /// 4.76). Samples stays.
     #[arg(long, default_value = Combine::default().name(), value_parser = Combine::from_name)]
     pub(super) combine: Combine,
     /// The tree guide's memory budget, MiB.
