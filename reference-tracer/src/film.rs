@@ -263,28 +263,28 @@ impl Film {
         (0..self.sum.len())
             .map(|i| {
                 let variance = |k: usize| lender[k].and_then(|l| iterations[l].sample_variance(i));
-                let Some(latest) = lender.last().copied().flatten().and_then(|l| iterations[l].sample_variance(i))
-                else {
-                    // No iteration of two passes yet: every sample alike.
-                    let (mut value, mut total) = (glam::DVec3::ZERO, 0.0f64);
-                    for iteration in &iterations {
-                        let p = iteration.pixels[i];
-                        let n = iteration.passes as f64;
-                        value += n * glam::DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64);
-                        total += n;
+                let latest = iterations.len().checked_sub(1).and_then(variance);
+                // Each iteration's weight, or none for the render's first pass once another
+                // has a σ²; before any iteration has one, every sample alike.
+                let weight = |k: usize| {
+                    let n = iterations[k].passes as f64;
+                    match latest {
+                        None => Some(n),
+                        Some(latest) => variance(k).map(|v| n / v.max(latest.max(LEAST_VARIANCE))),
                     }
-                    return (value / total.max(1.0)).as_vec3();
                 };
-                let floor = latest.max(LEAST_VARIANCE);
                 let (mut value, mut total) = (glam::DVec3::ZERO, 0.0f64);
                 for (k, iteration) in iterations.iter().enumerate() {
-                    let Some(variance) = variance(k) else { continue };
-                    let w = iteration.passes as f64 / variance.max(floor);
+                    let Some(w) = weight(k) else { continue };
                     let p = iteration.pixels[i];
                     value += w * glam::DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64);
                     total += w;
                 }
-                (value / total).as_vec3()
+                if total > 0.0 {
+                    (value / total).as_vec3()
+                } else {
+                    Vec3::ZERO
+                }
             })
             .collect()
     }
