@@ -103,6 +103,8 @@ pub use lights::{
 #[cfg(feature = "mixture")]
 pub use mixture::{GaussianMixture, GaussianMixtureSettings, MixtureRegion};
 #[cfg(feature = "tree")]
-pub use tree::{SpatialDirectionalTree, SpatialDirectionalTreeSettings, TreeDistribution, TreeRecords, TreeRegion};
+pub use tree::{
+    FlatTree, SpatialDirectionalTree, SpatialDirectionalTreeSettings, TreeDistribution, TreeRecords, TreeRegion,
+};
 #[cfg(feature = "volume")]
 pub use volume::{IrradianceVolume, IrradianceVolumeSettings, VolumeRegion};

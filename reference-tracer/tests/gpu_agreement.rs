@@ -128,13 +128,14 @@ fn unsupported_scenes_are_refused_with_a_reason() {
 }
 
 // ---------------------------------------------------------------------------------
-// Guided rendering on the GPU, for each of the three directional guides.
+// Guided rendering on the GPU, for each of the four directional guides.
 
 use glam::Vec3;
 use guiding_core::validation::{chi_square_test, ChiSquareReport, ChiSquareSettings};
 use guiding_core::{
     DirectionSample, DirectionalDistribution, GaussianMixture, GaussianMixtureSettings, HemisphereGrid,
-    IrradianceVolume, IrradianceVolumeSettings, MixtureRegion, ProbeId, VolumeRegion,
+    IrradianceVolume, IrradianceVolumeSettings, MixtureRegion, ProbeId, SpatialDirectionalTree,
+    SpatialDirectionalTreeSettings, TreeRegion, VolumeRegion,
 };
 use reference_tracer::directional_guide::{DirectionalGuide, DirectionalGuideSettings};
 use reference_tracer::gpu::{GpuGuide, GpuTracer};
@@ -153,6 +154,11 @@ fn mixture() -> GaussianMixtureSettings {
     GaussianMixtureSettings { budget_bytes: 512 << 10, ..Default::default() }
 }
 
+/// A tree of 256 KiB.
+fn tree() -> SpatialDirectionalTreeSettings {
+    SpatialDirectionalTreeSettings { budget_bytes: 256 << 10, ..Default::default() }
+}
+
 /// Renders `scene` with a fresh directional guide built from `settings` on `device`;
 /// returns the render and the guide it learned.
 fn render_learning(
@@ -163,9 +169,10 @@ fn render_learning(
     seed: u64,
     settings: DirectionalGuideSettings,
 ) -> (RenderStatistics, DirectionalGuide) {
-    // The shader's tables learn each direction unweighted, its mixture by target/pdf:
+    // The shader's tables learn each direction unweighted, its mixture and tree by target/pdf:
     // the CPU renders compared with them learn alike.
-    let density_weighted_learning = matches!(settings, DirectionalGuideSettings::Mixture(_));
+    let density_weighted_learning =
+        matches!(settings, DirectionalGuideSettings::Mixture(_) | DirectionalGuideSettings::Tree(_));
     let integrator = IntegratorSettings { density_weighted_learning, nee_weighs_guide: true, ..integrator(method) };
     let lights = power_lights();
     let mut session = prepare_with_lights(scene, IntersectorChoice::default(), Some(settings), lights).unwrap();
@@ -224,6 +231,20 @@ fn render_with_mixture(
     match render_learning(scene, device, method, spp, seed, mixture().into()) {
         (statistics, DirectionalGuide::Mixture(mixture)) => (statistics, mixture),
         _ => panic!("a mixture was built"),
+    }
+}
+
+/// [`render_learning`] with a spatial × directional tree.
+fn render_with_tree(
+    scene: &Path,
+    device: Device,
+    method: Method,
+    spp: u32,
+    seed: u64,
+) -> (RenderStatistics, SpatialDirectionalTree) {
+    match render_learning(scene, device, method, spp, seed, tree().into()) {
+        (statistics, DirectionalGuide::Tree(tree)) => (statistics, tree),
+        _ => panic!("a tree was built"),
     }
 }
 
@@ -302,6 +323,38 @@ fn the_mixture_guides_on_the_gpu_without_bias_and_learns_like_the_cpu() {
         assert_eq!(gpu.stats().epochs, cpu.stats().epochs, "{label}: one M-step per pass");
         assert_updates_alike(label, gpu, &cpu);
     });
+}
+
+#[test]
+fn the_tree_guides_on_the_gpu_without_bias_and_refines_like_the_cpu() {
+    if !adapter_available("tree") {
+        return;
+    }
+    guided_renders_agree_with_cpu_nee(91, render_with_tree, |label, scene, method, spp, gpu| {
+        let (_, cpu) = render_with_tree(scene, Device::Cpu, method, spp, 94);
+        assert!(gpu.validate().is_ok(), "{label}");
+        assert!(gpu.memory_bytes() <= tree().budget_bytes, "{label}: {} bytes", gpu.memory_bytes());
+        // The host refits after every pass, as the CPU's online schedule does, and the
+        // records split space and directions as many times over.
+        assert_eq!(gpu.stats().epochs, cpu.stats().epochs, "{label}: one refit per pass");
+        let (g, c) = (gpu.leaf_count(), cpu.leaf_count());
+        let (gn, cn) = (gpu.directional_node_count(), cpu.directional_node_count());
+        eprintln!("{label}: leaves GPU {g}, CPU {c}; directional nodes GPU {gn}, CPU {cn}");
+        assert!(g > 1 && gn > g, "{label}: the GPU's records refined nothing");
+        assert!((g as f64 / c as f64 - 1.0).abs() < 0.25, "{label}: leaves GPU {g} vs CPU {c}");
+        assert_updates_alike(label, gpu, &cpu);
+    });
+}
+
+#[test]
+fn the_gpus_tree_serves_the_cpu() {
+    if !adapter_available("tree learning") {
+        return;
+    }
+    let scene = support::repository_scene("cornell", 32, 32);
+    let (_, gpu) = render_with_tree(&scene, Device::Gpu, Method::GuidedNee, 48, 101);
+    assert!(gpu.leaf_count() > 1, "the GPU's tree did not refine");
+    gpu_learned_guide_serves_the_cpu(tree().into(), &gpu.to_bytes(), 104);
 }
 
 /// Directions drawn on the GPU, replayed as a distribution whose pdf is guiding-core's.
@@ -399,6 +452,19 @@ fn the_gpu_samplers_match_guiding_cores_pdfs() {
     let normal = (lobe.mean() + 1.2 * side).normalize();
     let cpu = learned.distribution(MixtureRegion { index: region as u32, normal });
     assert!(gpu_sampler_report((&learned).into(), region as u32, normal, cpu, lobe.mean()).passes(0.01));
+    // The tree's most-refined leaf: about a normal along its square's axis (the half of
+    // the square, by the cosine product) and about one off every axis (the fold).
+    let (_, learned) = render_with_tree(&scene, Device::Cpu, Method::GuidedNee, 32, 105);
+    let leaf = (0..learned.leaf_count() as u32).max_by_key(|&l| learned.directional_depth(l)).unwrap();
+    let mut axis = Vec3::ZERO;
+    axis[learned.leaf_axis(leaf).unwrap() as usize] = 1.0;
+    eprintln!("tree leaf {leaf}: depth {}, axis {axis}", learned.directional_depth(leaf));
+    assert!(learned.directional_depth(leaf) > 2, "the tree refined no leaf");
+    for normal in [axis, -axis, Vec3::new(0.3, 0.8, -0.52).normalize()] {
+        let region = TreeRegion { leaf, normal, upper_half: false };
+        let cpu = learned.distribution(region);
+        assert!(gpu_sampler_report((&learned).into(), leaf, normal, cpu, normal).passes(0.01), "about {normal}");
+    }
 }
 
 /// Mean squared relative difference of per-region totals over the regions both learned

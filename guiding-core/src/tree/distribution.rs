@@ -19,7 +19,7 @@ pub(crate) const ALIGNED_COS: f32 = 0.99;
 
 /// A half of the square holding less than this share of the mass is not sampled on its
 /// own: its region samples the hemisphere uniformly.
-const MIN_HALF_MASS: f32 = 1e-6;
+pub(crate) const MIN_HALF_MASS: f32 = 1e-6;
 
 /// How a region's distribution keeps to the normal's hemisphere.
 #[derive(Clone, Copy, Debug, PartialEq)]

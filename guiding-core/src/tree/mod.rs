@@ -16,6 +16,7 @@
 mod axis;
 mod cosine;
 mod distribution;
+mod flat;
 mod guide;
 mod merge;
 mod quadtree;
@@ -27,6 +28,7 @@ mod square;
 mod top_grid;
 
 pub use distribution::TreeDistribution;
+pub use flat::FlatTree;
 pub use guide::{SpatialDirectionalTree, TreeRegion};
 pub use records::TreeRecords;
 pub use serialize::{FORMAT_VERSION, STRUCTURE_TAG};

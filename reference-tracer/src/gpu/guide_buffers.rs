@@ -1,18 +1,22 @@
 //! A directional guide on the GPU: a [`HemisphereGrid`]'s or an [`IrradianceVolume`]'s
 //! flat arrays uploaded as they are (f32 positions and normals, Q as f32 bits, visit
 //! counts, CDF, Lambertian sums or spherical-harmonic coefficients, the hash grid's
-//! bucket table or the octree's nodes), or a [`GaussianMixture`]'s lobe table and batch
-//! words; updated in place by the shader, and read back into the same structure. What
-//! differs between the structures on the GPU's host side lives here: their shape in the
-//! pass parameters, the host's copy of a guide it refits between passes
-//! ([`HostGuide`]), and the download.
+//! bucket table or the octree's nodes), a [`GaussianMixture`]'s lobe table and batch
+//! words, or a [`SpatialDirectionalTree`]'s flat arrays and a buffer the shader appends
+//! its records to (`tree_upload.rs`); updated in place by the shader (the tree by the
+//! host, from the records), and read back into the same structure. What differs between
+//! the structures on the GPU's host side lives here: their shape in the pass parameters,
+//! the host's copy of a guide it refits between passes ([`HostGuide`]), and the download.
 
 use std::sync::atomic::{AtomicU32, Ordering};
 
-use guiding_core::{GaussianMixture, Guide, HemisphereGrid, HemisphereMapping, IrradianceVolume, LearningRate};
+use guiding_core::{
+    GaussianMixture, Guide, HemisphereGrid, HemisphereMapping, IrradianceVolume, LearningRate, SpatialDirectionalTree,
+};
 use wgpu::util::DeviceExt;
 
 use super::params::Params;
+use super::tree_upload::{self, TreeOnHost};
 use super::GpuContext;
 use crate::directional_guide::DirectionalGuide;
 
@@ -20,6 +24,7 @@ use crate::directional_guide::DirectionalGuide;
 const GUIDE_HEMISPHERE: u32 = 0;
 const GUIDE_VOLUME: u32 = 1;
 const GUIDE_MIXTURE: u32 = 2;
+pub(super) const GUIDE_TREE: u32 = 3;
 
 /// A structure on the GPU: the name of its code in the shader (`Params::guide_kind`),
 /// the code, and its own shader file, which defines the hooks the shader's guide
@@ -33,7 +38,7 @@ pub(super) struct GuideShader {
 }
 
 /// Every structure the GPU guides with; the first is what the dispatch falls back on.
-pub(super) const GUIDE_SHADERS: [GuideShader; 3] = [
+pub(super) const GUIDE_SHADERS: [GuideShader; 4] = [
     GuideShader {
         constant: "GUIDE_HEMISPHERE",
         code: GUIDE_HEMISPHERE,
@@ -52,6 +57,12 @@ pub(super) const GUIDE_SHADERS: [GuideShader; 3] = [
         prefix: "mixture",
         source: include_str!("shader/guide_mixture.wgsl"),
     },
+    GuideShader {
+        constant: "GUIDE_TREE",
+        code: GUIDE_TREE,
+        prefix: "tree",
+        source: include_str!("shader/guide_tree.wgsl"),
+    },
 ];
 
 /// The structure the GPU guides with.
@@ -63,18 +74,19 @@ pub enum GpuGuide<'a> {
     Volume(&'a IrradianceVolume),
     /// Grid regions with vMF mixtures (the M-step runs on the host between passes).
     Mixture(&'a GaussianMixture),
+    /// The spatial × directional tree (records splatted and the tree refitted on the
+    /// host between passes).
+    Tree(&'a SpatialDirectionalTree),
 }
 
 impl<'a> GpuGuide<'a> {
-    /// The GPU's view of `guide`; the spatial × directional tree has none yet.
+    /// The GPU's view of `guide`.
     pub fn of(guide: &'a DirectionalGuide) -> Result<Self, String> {
         match guide {
             DirectionalGuide::Hemisphere(grid) => Ok(GpuGuide::Hemisphere(grid)),
             DirectionalGuide::Volume(volume) => Ok(GpuGuide::Volume(volume)),
             DirectionalGuide::Mixture(mixture) => Ok(GpuGuide::Mixture(mixture)),
-            DirectionalGuide::Tree(_) => {
-                Err("the GPU tracer has no tree guide yet (--guide hemisphere, volume or mixture)".into())
-            }
+            DirectionalGuide::Tree(tree) => Ok(GpuGuide::Tree(tree)),
         }
     }
 }
@@ -82,6 +94,12 @@ impl<'a> GpuGuide<'a> {
 impl<'a> From<&'a GaussianMixture> for GpuGuide<'a> {
     fn from(mixture: &'a GaussianMixture) -> Self {
         GpuGuide::Mixture(mixture)
+    }
+}
+
+impl<'a> From<&'a SpatialDirectionalTree> for GpuGuide<'a> {
+    fn from(tree: &'a SpatialDirectionalTree) -> Self {
+        GpuGuide::Tree(tree)
     }
 }
 
@@ -137,6 +155,7 @@ impl GpuGuide<'_> {
                 params.set_cell_grid(GUIDE_MIXTURE, mixture.resolution(), mixture.grid_transform());
                 params.uniform_mix = s.uniform_mix;
             }
+            GpuGuide::Tree(tree) => tree_upload::write_params(tree, params),
         }
     }
 
@@ -148,6 +167,7 @@ impl GpuGuide<'_> {
             GpuGuide::Hemisphere(_) => None,
             GpuGuide::Volume(volume) => Some(HostGuide::Volume(volume.clone())),
             GpuGuide::Mixture(mixture) => Some(HostGuide::Mixture(mixture.clone())),
+            GpuGuide::Tree(tree) => Some(HostGuide::Tree(TreeOnHost::new(tree.clone()))),
         }
     }
 }
@@ -159,6 +179,9 @@ pub enum HostGuide {
     Volume(IrradianceVolume),
     /// guiding-core's M-step on the host, the refitted lobes uploaded.
     Mixture(GaussianMixture),
+    /// The pass's records splatted and the tree refitted on the host, the refitted tree
+    /// uploaded.
+    Tree(TreeOnHost),
 }
 
 impl HostGuide {
@@ -169,18 +192,20 @@ impl HostGuide {
     }
 
     /// The buffer the host reads after every learning pass: a volume's leaf visit
-    /// counts, a mixture's batch words.
+    /// counts, a mixture's batch words, the tree's records.
     pub(super) fn pass_readback<'b>(&self, buffers: &'b GuideBuffers) -> &'b wgpu::Buffer {
         match self {
             HostGuide::Volume(_) => &buffers.region_visits,
-            HostGuide::Mixture(_) => &buffers.q,
+            HostGuide::Mixture(_) | HostGuide::Tree(_) => &buffers.q,
         }
     }
 
     /// Between passes, from the pass's `words` ([`pass_readback`](Self::pass_readback)):
     /// a volume takes its leaf visit counts and, where its rule says leaves split, its
     /// tables too, splits on the host and uploads the grown tree, tables and CDFs; a
-    /// mixture takes its batch sums, fits, and uploads its lobes and an empty batch.
+    /// mixture takes its batch sums, fits, and uploads its lobes and an empty batch; the
+    /// tree takes the pass's records, refits (as the CPU's online schedule does after
+    /// every pass), and uploads itself and an empty record buffer.
     pub(super) fn refit(
         &mut self,
         words: &[u32],
@@ -204,6 +229,7 @@ impl HostGuide {
                 mixture.rebuild_sampling();
                 buffers.write_mixture(&context.queue, mixture);
             }
+            HostGuide::Tree(host) => host.learn_pass(words, &context.queue, buffers, params)?,
         }
         Ok(())
     }
@@ -226,8 +252,8 @@ pub fn unsupported(guide: GpuGuide<'_>) -> Option<String> {
             settings.update_rule.learning_rate
         }
         GpuGuide::Volume(volume) => volume.settings().update_rule.learning_rate,
-        // The host takes the M-step with guiding-core's own rule, whichever it is.
-        GpuGuide::Mixture(_) => return None,
+        // The host takes the M-step, or refits the tree, with guiding-core's own rule.
+        GpuGuide::Mixture(_) | GpuGuide::Tree(_) => return None,
     };
     if matches!(rate, LearningRate::Global { .. }) {
         return Some("the global learning rate".into());
@@ -239,9 +265,11 @@ pub fn unsupported(guide: GpuGuide<'_>) -> Option<String> {
 /// (or no guide) uploads one element; a volume's arrays have room for every leaf and
 /// node its budget allows.
 pub struct GuideBuffers {
+    /// The grid's probe positions, or the tree's cell probabilities.
     pub positions: wgpu::Buffer,
+    /// The grid's probe normals, or the tree's cell probabilities under the cosine product.
     pub normals: wgpu::Buffer,
-    /// The grid's bucket starts, or the volume's nodes.
+    /// The grid's bucket starts, the volume's nodes, or the tree's nodes and leaves.
     pub index_table: wgpu::Buffer,
     pub q: wgpu::Buffer,
     pub patch_visits: wgpu::Buffer,
@@ -260,7 +288,7 @@ fn bits(words: &[AtomicU32]) -> Vec<u32> {
 }
 
 /// `values` zero-padded to `length` (at least one element).
-fn padded<T: Default + Clone>(values: &[T], length: usize) -> Vec<T> {
+pub(super) fn padded<T: Default + Clone>(values: &[T], length: usize) -> Vec<T> {
     let mut padded = values.to_vec();
     padded.resize(length.max(values.len()).max(1), T::default());
     padded
@@ -316,6 +344,14 @@ impl Arrays {
         }
     }
 
+    /// A tree's tables ([`tree_upload::tables`]) in the `positions`, `normals`,
+    /// `index_table` and `q` slots.
+    fn of_tree(tree: &SpatialDirectionalTree, record_capacity: u32) -> Result<Self, String> {
+        let t = tree_upload::tables(tree, record_capacity)?;
+        let (positions, normals, index_table) = (t.probabilities, t.cosine_probabilities, t.index_table);
+        Ok(Self { positions, normals, index_table, q: t.records, ..Self::empty() })
+    }
+
     /// A mixture's lobe table (in the `cdf` slot) and batch words (in the `q` slot).
     fn of_mixture(m: &GaussianMixture) -> Self {
         Self { cdf: m.lobe_table(), q: bits(m.batch_words()), ..Self::empty() }
@@ -337,12 +373,14 @@ impl Arrays {
 }
 
 impl GuideBuffers {
-    /// Uploads `guide`, or one-element placeholders for unguided renders.
-    pub fn new(device: &wgpu::Device, guide: Option<GpuGuide<'_>>) -> Self {
+    /// Uploads `guide` (its shape written into `params`), or one-element placeholders
+    /// for unguided renders.
+    pub fn new(device: &wgpu::Device, guide: Option<GpuGuide<'_>>, params: &Params) -> Result<Self, String> {
         let arrays = match guide {
             Some(GpuGuide::Hemisphere(grid)) => Arrays::of_grid(grid),
             Some(GpuGuide::Volume(volume)) => Arrays::of_volume(volume),
             Some(GpuGuide::Mixture(mixture)) => Arrays::of_mixture(mixture),
+            Some(GpuGuide::Tree(tree)) => Arrays::of_tree(tree, params.record_capacity)?,
             None => Arrays::empty(),
         };
         let buffer = |label: &str, bytes: &[u8], usage: wgpu::BufferUsages| {
@@ -353,9 +391,12 @@ impl GuideBuffers {
         let index_usage = read | wgpu::BufferUsages::COPY_DST;
         let a = &arrays;
         let one = |values: &[u32]| padded(values, 1);
-        Self {
-            positions: buffer("probe positions", bytemuck::cast_slice(&padded(&a.positions, 1)), read),
-            normals: buffer("probe normals", bytemuck::cast_slice(&padded(&a.normals, 1)), read),
+        // The tree's arrays are rewritten whole at every refit.
+        let refitted =
+            if matches!(guide, Some(GpuGuide::Tree(_))) { read | wgpu::BufferUsages::COPY_DST } else { read };
+        Ok(Self {
+            positions: buffer("probe positions", bytemuck::cast_slice(&padded(&a.positions, 1)), refitted),
+            normals: buffer("probe normals", bytemuck::cast_slice(&padded(&a.normals, 1)), refitted),
             index_table: buffer("index table", bytemuck::cast_slice(&one(&a.index_table)), index_usage),
             q: buffer("q", bytemuck::cast_slice(&one(&a.q)), READ_WRITE),
             patch_visits: buffer("patch visits", bytemuck::cast_slice(&one(&a.patch_visits)), READ_WRITE),
@@ -365,7 +406,7 @@ impl GuideBuffers {
             patch_weights: buffer("patch weights", bytemuck::cast_slice(&padded(&a.patch_weights, 1)), read),
             // The CDFs uploaded are current: rebuild only what the first pass changes.
             built_visits: buffer("built visits", bytemuck::cast_slice(&one(&a.region_visits)), READ_WRITE),
-        }
+        })
     }
 
     /// Rewrites every array of `volume` (after the host split leaves), its CDFs
@@ -436,7 +477,7 @@ impl GuideBuffers {
                 *volume = learned;
             }
             (DirectionalGuide::Mixture(mixture), Some(HostGuide::Mixture(learned))) => mixture.clone_from(learned),
-            (DirectionalGuide::Tree(_), _) => return Err("the GPU tracer has no tree guide yet".into()),
+            (DirectionalGuide::Tree(tree), Some(HostGuide::Tree(learned))) => *tree = learned.tree.clone(),
             (guide, _) => return Err(format!("the {} guide is not the one uploaded", guide.structure().name())),
         }
         Ok(())

@@ -42,11 +42,21 @@
 //! rate) runs on the host after each pass on the batch read back (a few KiB), and the
 //! refitted lobes go up again.
 //!
+//! A [`SpatialDirectionalTree`](guiding_core::SpatialDirectionalTree) goes up as its
+//! [`FlatTree`](guiding_core::FlatTree) (spatial nodes and leaves, the quadtrees'
+//! children and cell probabilities, those under the cosine product), with room for all
+//! its budget allows. The shader descends the spatial tree to the leaf and each leaf's
+//! quadtree to sample and evaluate, as guiding-core does, and appends each learned
+//! vertex as a record (leaf and half, normal, direction, target, pdf; 36 bytes) to a
+//! buffer with room for 16 per pixel, at most 2²⁰ a pass. After every learning pass the
+//! host reads the records, splats them into its copy of the tree, refits it (the CPU's
+//! online schedule) and uploads it again.
+//!
 //! What runs on the GPU: diffuse, conductor (GGX, optional complex-IOR Fresnel),
 //! dielectric and thin dielectric materials; area lights; a constant environment;
-//! geometric normals; all three directional guides — the hemisphere grid in its
+//! geometric normals; all four directional guides — the hemisphere grid in its
 //! cylindrical layout and the irradiance volume with the simple, region or exponential
-//! learning rates, the mixture with any. Scenes or settings needing more (textures,
+//! learning rates, the mixture and the tree with any. Scenes or settings needing more (textures,
 //! masks, plastic, an image environment) are refused with a message naming what is
 //! missing.
 
@@ -57,6 +67,7 @@ mod params;
 mod readback;
 mod scene_buffers;
 mod shader;
+mod tree_upload;
 
 use std::time::Instant;
 
@@ -228,7 +239,7 @@ impl GpuTracer {
         let pipeline = entry_point(device, &module, "trace");
         let rebuild = entry_point(device, &module, "rebuild");
         let storage = buffers.uploaded(device);
-        let guide_buffers = GuideBuffers::new(device, guide);
+        let guide_buffers = GuideBuffers::new(device, guide, &params)?;
         let g = &guide_buffers;
         let all = [
             &params_buffer,

@@ -118,6 +118,14 @@ uniform_block! {
         sample_normal: [f32; 3] => "vec3<f32>",
         /// Unused: fills the row.
         padding_b: u32 => "u32",
+        /// The tree: the word of `index_table` its leaves start at.
+        tree_leaves_at: u32 => "u32",
+        /// The tree: the word of `index_table` its quadtree nodes' children start at.
+        tree_quad_at: u32 => "u32",
+        /// The tree: TREE_FLAG_* (a spatial tree per axis, folding, the cosine product).
+        tree_flags: u32 => "u32",
+        /// The tree: records the pass's record buffer holds.
+        record_capacity: u32 => "u32",
     }
 }
 

@@ -30,7 +30,9 @@ impl GpuTracer {
         let pipeline = entry_point(device, &self.module, "sample_guide");
         let entries = [
             wgpu::BindGroupEntry { binding: 0, resource: self.params_buffer.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 10, resource: self.guide.positions.as_entire_binding() },
             wgpu::BindGroupEntry { binding: 11, resource: self.guide.normals.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 12, resource: self.guide.index_table.as_entire_binding() },
             wgpu::BindGroupEntry { binding: 16, resource: self.guide.cdf.as_entire_binding() },
             wgpu::BindGroupEntry { binding: 20, resource: samples.as_entire_binding() },
         ];

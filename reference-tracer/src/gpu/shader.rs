@@ -16,8 +16,10 @@ use super::params::{
     method_code, Params, LEARNING_RATE_ENTRY_VISITS, LEARNING_RATE_EXPONENTIAL, LEARNING_RATE_REGION_VISITS,
 };
 use super::scene_buffers::{MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC, MATERIAL_DIFFUSE, MATERIAL_THIN_DIELECTRIC};
+use super::tree_upload::{TREE_FLAG_COSINE, TREE_FLAG_FOLD, TREE_FLAG_PER_AXIS};
 use crate::integrator::Method;
 use guiding_core::volume::SH_NORMALIZATION;
+use guiding_core::FlatTree;
 
 /// The shader's files before the guides', in the order they are joined.
 const BEFORE_GUIDES: [&str; 6] = [
@@ -49,7 +51,7 @@ const GUIDE_HOOKS: [(&str, &str, &str); 6] = [
     ("locate", "point: vec3<f32>, normal: vec3<f32>", "u32"),
     ("pdf", "region: u32, normal: vec3<f32>, wi: vec3<f32>", "f32"),
     ("sample", "region: u32, normal: vec3<f32>, u: vec2<f32>", "GuideSample"),
-    ("learn", "region: u32, wi: vec3<f32>, goal: f32, pdf: f32", ""),
+    ("learn", "region: u32, normal: vec3<f32>, wi: vec3<f32>, goal: f32, pdf: f32", ""),
     ("integral", "region: u32, m: Material, shading: Shading, wo_local: vec3<f32>, u: vec2<f32>, u_lobe: f32", "f32"),
     ("rebuild", "region: u32", ""),
 ];
@@ -94,10 +96,23 @@ fn generated_constants() -> impl Iterator<Item = (&'static str, u32)> {
         ("LEARNING_RATE_EXPONENTIAL", LEARNING_RATE_EXPONENTIAL),
         ("LEARNING_RATE_ENTRY_VISITS", LEARNING_RATE_ENTRY_VISITS),
         ("LEARNING_RATE_REGION_VISITS", LEARNING_RATE_REGION_VISITS),
+        ("TREE_LEAF", FlatTree::LEAF),
+        ("TREE_FLAG_PER_AXIS", TREE_FLAG_PER_AXIS),
+        ("TREE_FLAG_FOLD", TREE_FLAG_FOLD),
+        ("TREE_FLAG_COSINE", TREE_FLAG_COSINE),
     ]
     .into_iter()
     .chain(GUIDE_SHADERS.iter().map(|guide| (guide.constant, guide.code)))
 }
+
+/// The WGSL float constants that must equal Rust's, by name.
+fn generated_float_constants() -> impl Iterator<Item = (&'static str, f32)> {
+    let harmonics = SH_NORMALIZATION.iter().enumerate().map(|(k, &value)| (SH_NAMES[k], value));
+    harmonics.chain([("TREE_ALIGNED_COS", FlatTree::ALIGNED_COS), ("TREE_MIN_HALF_MASS", FlatTree::MIN_HALF_MASS)])
+}
+
+/// The names of guiding-core's spherical-harmonic normalisation constants.
+const SH_NAMES: [&str; 5] = ["SH_K0", "SH_K1", "SH_K2", "SH_K3", "SH_K4"];
 
 /// The whole shader.
 pub(super) fn source() -> String {
@@ -107,8 +122,8 @@ pub(super) fn source() -> String {
         let _ = writeln!(source, "const {name}: u32 = {value}u;");
     }
     // `{:?}` prints the shortest decimal that reads back as the same f32.
-    for (k, value) in SH_NORMALIZATION.iter().enumerate() {
-        let _ = writeln!(source, "const SH_K{k}: f32 = {value:?};");
+    for (name, value) in generated_float_constants() {
+        let _ = writeln!(source, "const {name}: f32 = {value:?};");
     }
     source.push('\n');
     source.push_str(Params::WGSL);
@@ -140,7 +155,8 @@ mod tests {
     /// No file defines a constant the host generates (it would clash, or drift).
     #[test]
     fn generated_constants_are_defined_nowhere_else() {
-        for (name, _) in generated_constants() {
+        let names = generated_constants().map(|(name, _)| name);
+        for name in names.chain(generated_float_constants().map(|(name, _)| name)) {
             let definition = format!("const {name}:");
             assert!(parts().all(|part| !part.contains(&definition)), "{name} is defined in a shader file");
         }

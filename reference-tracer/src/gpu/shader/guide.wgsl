@@ -5,9 +5,9 @@
 
 // Eq. (1) with the guide's rule: Q' = (1 − α)Q + α·target (the mixture's batch sums
 // instead, which need the direction's sampling pdf), for a finite target ≥ 0.
-fn guide_update(region: u32, wi: vec3<f32>, goal: f32, pdf: f32) {
+fn guide_update(region: u32, normal: vec3<f32>, wi: vec3<f32>, goal: f32, pdf: f32) {
     if (!(goal >= 0.0 && goal < INFINITY)) { return; }
-    guide_learn(region, wi, goal, pdf);
+    guide_learn(region, normal, wi, goal, pdf);
 }
 
 // Draws arrayLength(guide_samples) directions from probe `params.pass_index`'s

@@ -149,7 +149,7 @@ fn add_to_lambertian_sum(probe: u32, value: f32) {
 // _sample are above.
 
 // Eq. (1), the probe's Lambertian sum kept current.
-fn hemisphere_learn(region: u32, wi: vec3<f32>, goal: f32, pdf: f32) {
+fn hemisphere_learn(region: u32, normal: vec3<f32>, wi: vec3<f32>, goal: f32, pdf: f32) {
     let entry = hemisphere_patch(region, wi);
     let change = table_learn(region, entry, goal);
     if (change != 0.0) {

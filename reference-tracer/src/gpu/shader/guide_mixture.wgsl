@@ -118,7 +118,7 @@ fn add_to_batch(index: u32, value: f32) {
 
 // GaussianMixture::update_sampled: v = target / sampling pdf, split over the lobes by
 // their responsibilities into the region's batch sums.
-fn mixture_learn(region: u32, d: vec3<f32>, goal: f32, pdf: f32) {
+fn mixture_learn(region: u32, normal: vec3<f32>, d: vec3<f32>, goal: f32, pdf: f32) {
     if (!(abs(dot(d, d) - 1.0) < 1e-3 && pdf > 0.0 && pdf < INFINITY)) { return; }
     let weight = min(goal / pdf, 1e30);
     let lobes = params.guide_patches;

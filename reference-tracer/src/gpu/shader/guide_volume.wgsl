@@ -106,7 +106,7 @@ fn sh_cosine_integral(leaf: u32, normal: vec3<f32>) -> f32 {
 // The learning hooks of the guide dispatch (guide.wgsl): a region is a leaf;
 // volume_locate, _pdf and _sample are above.
 
-fn volume_learn(region: u32, wi: vec3<f32>, goal: f32, pdf: f32) {
+fn volume_learn(region: u32, normal: vec3<f32>, wi: vec3<f32>, goal: f32, pdf: f32) {
     _ = table_learn(region, sphere_patch_of(wi), goal);
 }
 

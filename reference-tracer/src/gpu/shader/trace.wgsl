@@ -11,6 +11,8 @@ const ONWARD_END: u32 = 2u;
 struct LearningVertex {
     probe: u32,
     onward_kind: u32,
+    // The surface normal the probe was located with.
+    normal: vec3<f32>,
     onward: f32,
     arriving: f32,
     direction: vec3<f32>,
@@ -202,6 +204,7 @@ fn trace(@builtin(global_invocation_id) id: vec3<u32>) {
                 path[count - 1u].onward = luminance(factor) / survival;
             }
             path[count].probe = probe;
+            path[count].normal = shading.frame.normal;
             path[count].onward_kind = ONWARD_END;
             path[count].onward = 0.0;
             path[count].arriving = 0.0;
@@ -223,7 +226,7 @@ fn trace(@builtin(global_invocation_id) id: vec3<u32>) {
         if (v.onward_kind == ONWARD_INTEGRAL) { onward = v.onward; }
         if (v.onward_kind == ONWARD_CARRY) { onward = v.onward * next_target; }
         let goal = v.arriving + onward;
-        if (v.probe != NO_PROBE) { guide_update(v.probe, v.direction, goal, v.pdf); }
+        if (v.probe != NO_PROBE) { guide_update(v.probe, v.normal, v.direction, goal, v.pdf); }
         next_target = goal;
     }
     pass_image[pixel] = vec4<f32>(radiance, 1.0);
