@@ -10,8 +10,8 @@
 #
 # which prints the adapter wgpu picked (and fails if it is a software one, unless
 # LODESTAR_ALLOW_SOFTWARE=1), runs the GPU agreement tests with LODESTAR_REQUIRE_GPU=1,
-# and runs `lodestar compare --methods nee,gpu:nee,guided-nee,gpu:guided-nee` on door
-# and cornell at their resolution and at 1280×720, writing summary.md, log.txt and
+# and runs `lodestar compare --methods nee,gpu:nee,guided-nee,gpu:guided-nee,gpu:guided-nee@tree`
+# on door and cornell at their resolution and at 1280×720, writing summary.md, log.txt and
 # results.tar.gz into $OUT (or .device-gpu/out). See `run.sh`'s head for its settings.
 #
 # To try it end to end on lavapipe (this machine, no GPU):

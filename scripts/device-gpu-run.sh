@@ -5,15 +5,16 @@
 #
 # Settings (environment):
 #   OUT                  where summary.md, log.txt and results.tar.gz go (default: out/ beside this)
-#   SECONDS_PER_METHOD   each compare row's wall time (default 20: the whole run then takes
-#                        about 8 minutes on the device, inside its 10-minute limit)
+#   SECONDS_PER_METHOD   each compare row's wall time (default 16: five rows on four
+#                        images, the whole run about 8 minutes on the device, inside its
+#                        10-minute limit)
 #   REFERENCE_SECONDS    the GPU's nee render that serves as the 1280×720 reference (default 60)
 #   HD                   the large resolution (default 1280x720)
 #   LODESTAR_ALLOW_SOFTWARE=1  accept a software adapter (lavapipe), to try the bundle here
 set -uo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
 out=${OUT:-$here/out}
-seconds=${SECONDS_PER_METHOD:-20}
+seconds=${SECONDS_PER_METHOD:-16}
 reference_seconds=${REFERENCE_SECONDS:-60}
 hd=${HD:-1280x720}
 work=$(mktemp -d)
@@ -73,8 +74,9 @@ if [ "$software" = yes ] && [ "${LODESTAR_ALLOW_SOFTWARE:-0}" != 1 ]; then
 fi
 
 # 2. The compare tables: each scene at its own resolution (CPU references from the
-# bundle) and at $hd (a GPU nee render as reference).
-methods=nee,gpu:nee,guided-nee,gpu:guided-nee
+# bundle) and at $hd (a GPU nee render as reference). Guided rows with the default guide
+# (the hemisphere grid), and the GPU's with the spatial × directional tree too.
+methods=nee,gpu:nee,guided-nee,gpu:guided-nee,gpu:guided-nee@tree
 status=$tests
 for scene in door cornell; do
     file=$here/scenes/$scene/scene.json
