@@ -36,7 +36,8 @@ const ROOT_WORDS: usize = 3;
 
 /// Writes the tree's shape and settings into `params`: the box, where its leaves and
 /// quadtree nodes start in `index_table` (fixed by its budget), its flags, its uniform
-/// share, and the record buffer's room.
+/// share, and the record buffer's room (none where the guide does not learn; `params`
+/// says whether it does).
 pub(super) fn write_params(tree: &SpatialDirectionalTree, params: &mut Params) {
     let flat = tree.flat();
     let (leaves, _) = tree.capacity();
@@ -47,7 +48,8 @@ pub(super) fn write_params(tree: &SpatialDirectionalTree, params: &mut Params) {
         | (flat.fold_to_hemisphere as u32 * TREE_FLAG_FOLD)
         | (!flat.cosine_probabilities.is_empty() as u32 * TREE_FLAG_COSINE);
     params.uniform_mix = flat.uniform_mix;
-    params.record_capacity = record_capacity(params.width.saturating_mul(params.height));
+    let learns = params.guide_learns != 0;
+    params.record_capacity = if learns { record_capacity(params.width.saturating_mul(params.height)) } else { 0 };
     set_shape(params, tree);
 }
 
