@@ -179,54 +179,55 @@ struct SquareSample {
     density: f32,
 };
 
+// Where a sampling descent stands: the cell's corner and side in the square, the
+// density of the cells picked so far, and the node below (or done at a leaf cell).
+struct Walk {
+    origin: vec2<f32>,
+    size: f32,
+    density: f32,
+    node: u32,
+    done: bool,
+};
+
+// quadtree::step_into: into cell `cell` of the walk's node.
+fn tree_step(walk: Walk, cell: u32, cosine: bool) -> Walk {
+    var next = walk;
+    next.density *= 4.0 * tree_probability(walk.node, cell, cosine);
+    next.size *= 0.5;
+    next.origin += vec2<f32>(f32(cell & 1u), f32(cell >> 1u)) * next.size;
+    next.node = tree_child(walk.node, cell);
+    next.done = next.node == 0u;
+    return next;
+}
+
 // quadtree::sample_square_by: a point drawn by the cell probabilities from u, with its
 // density relative to uniform; `restricted` keeps it to the half u ≥ 1/2 (`high`) or
 // u < 1/2 of the square.
 fn tree_sample_square(root: u32, start: vec2<f32>, restricted: bool, high: bool, cosine: bool) -> SquareSample {
     var u = start;
-    var node = root;
-    var origin = vec2<f32>(0.0);
-    var size = 1.0;
-    var density = 1.0;
-    var level = 0u;
-    var done = false;
+    var walk = Walk(vec2<f32>(0.0), 1.0, 1.0, root, false);
     if (restricted) {
         let ix = select(0u, 1u, high);
-        let pick = tree_choose(u.y, tree_probability(node, ix, cosine), tree_probability(node, ix + 2u, cosine));
+        let pick = tree_choose(u.y, tree_probability(root, ix, cosine), tree_probability(root, ix + 2u, cosine));
         u.y = pick.u;
-        let cell = ix + 2u * pick.index;
-        density *= 4.0 * tree_probability(node, cell, cosine);
-        size *= 0.5;
-        origin += vec2<f32>(f32(cell & 1u), f32(cell >> 1u)) * size;
-        let child = tree_child(node, cell);
-        done = child == 0u;
-        node = child;
+        walk = tree_step(walk, ix + 2u * pick.index, cosine);
     }
     // The levels take turns with the two numbers, u's then v's.
-    for (; !done && level < TREE_MAX_DEPTH; level += 1u) {
+    for (var level = 0u; !walk.done && level < TREE_MAX_DEPTH; level += 1u) {
         var pick: Pick;
         if ((level & 1u) == 0u) {
-            pick = tree_pick_cell(u.x, node, cosine);
+            pick = tree_pick_cell(u.x, walk.node, cosine);
             u.x = pick.u;
         } else {
-            pick = tree_pick_cell(u.y, node, cosine);
+            pick = tree_pick_cell(u.y, walk.node, cosine);
             u.y = pick.u;
         }
-        let cell = pick.index;
-        density *= 4.0 * tree_probability(node, cell, cosine);
-        size *= 0.5;
-        origin += vec2<f32>(f32(cell & 1u), f32(cell >> 1u)) * size;
-        let child = tree_child(node, cell);
-        done = child == 0u;
-        node = child;
+        walk = tree_step(walk, pick.index, cosine);
     }
     // Kept inside the leaf cell: origin + u·size can round onto its far edge.
-    let end = origin + vec2<f32>(size);
+    let end = walk.origin + vec2<f32>(walk.size);
     let below = bitcast<vec2<f32>>(bitcast<vec2<u32>>(end) - vec2<u32>(1u));
-    var s: SquareSample;
-    s.p = min(origin + u * size, below);
-    s.density = density;
-    return s;
+    return SquareSample(min(walk.origin + u * walk.size, below), walk.density);
 }
 
 // A region's distribution: how it keeps to the normal's hemisphere.
