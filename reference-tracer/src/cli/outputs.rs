@@ -87,6 +87,7 @@ pub fn statistics_json(
         "passes": statistics.passes,
         "training_passes": statistics.training_passes,
         "training_stopped_idle": statistics.training_stopped_idle,
+        "lost_records": statistics.lost_records,
         "training_seconds": statistics.training_seconds,
         "kept_paths_per_second": statistics.kept_paths_per_second(),
         "spp": statistics.passes,

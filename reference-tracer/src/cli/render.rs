@@ -140,6 +140,9 @@ pub(super) fn run_render(args: &RenderArgs) -> Result<(), String> {
     if let Some(guide) = session.learners.guide_for(args.integrator) {
         eprintln!("learned: {}", guide.describe());
     }
+    if statistics.lost_records > 0 {
+        eprintln!("lost: {} learning records past the GPU's record buffer", statistics.lost_records);
+    }
     if let Some(shares) = describe_shares(&session, args.integrator) {
         eprintln!("shares: {shares}");
     }

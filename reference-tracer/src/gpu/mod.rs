@@ -386,6 +386,9 @@ impl GpuTracer {
             } else {
                 PassFate::Keep
             };
+            if let Some(HostGuide::Tree(tree)) = &self.host {
+                statistics.lost_records = tree.lost_records;
+            }
             if end_of_pass(&mut film, &mut statistics, settings, fate, start, &mut on_pass) {
                 break;
             }

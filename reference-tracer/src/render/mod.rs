@@ -78,6 +78,9 @@ pub struct RenderStatistics {
     pub guide_rebuild_seconds: f64,
     /// Mean radiance (RGB) of each pass's image in the film, for error estimates.
     pub pass_means: Vec<[f64; 3]>,
+    /// Learning records the GPU made past its record buffer's room, left unlearned (the
+    /// tree guide on the GPU; 0 elsewhere).
+    pub lost_records: u64,
 }
 
 impl RenderStatistics {
