@@ -198,7 +198,11 @@ pub struct TraceOptions {
     /// 10 s the living room's relMSE was 1.6 to 1.9 × nee's against 0.97 to 1.52: the
     /// current iteration's first pass was left out of the image. Since it borrows the
     /// iteration before's variance, 1.12 and 0.98 (seeds 42 and 43; at 60 s 4.90 and
-    /// 4.76). Samples stays.
+    /// 4.76). At 73fffa7 on all six scenes (seed 41, guided-nee at 60 s, relMSE
+    /// inverse-variance ÷ samples, at 10 s in brackets): door 0.88 (1.16), cornell 0.99
+    /// (1.01), glossy 0.99 (0.94), many_lights 0.97 (0.84), Veach Ajar 0.99 (0.98), living
+    /// room 0.97 (1.22): a few per cent at 60 s, within a run's noise but on one scene,
+    /// and door and the living room lose at 10 s. Samples stays.
     #[arg(long, default_value = Combine::default().name(), value_parser = Combine::from_name)]
     pub(super) combine: Combine,
     /// The tree guide's memory budget, MiB.
