@@ -56,9 +56,9 @@
 //! dielectric and thin dielectric materials; area lights; a constant environment;
 //! geometric normals; all four directional guides — the hemisphere grid in its
 //! cylindrical layout and the irradiance volume with the simple, region or exponential
-//! learning rates, the mixture and the tree with any. Scenes or settings needing more (textures,
-//! masks, plastic, an image environment) are refused with a message naming what is
-//! missing.
+//! learning rates, the mixture and the tree with any. Scenes or settings needing more
+//! (textures, masks, plastic, an image environment) are refused with a message naming
+//! what is missing.
 
 mod backend;
 mod context;

@@ -107,12 +107,13 @@ fn generated_constants() -> impl Iterator<Item = (&'static str, u32)> {
 
 /// The WGSL float constants that must equal Rust's, by name.
 fn generated_float_constants() -> impl Iterator<Item = (&'static str, f32)> {
-    let harmonics = SH_NORMALIZATION.iter().enumerate().map(|(k, &value)| (SH_NAMES[k], value));
+    let harmonics = SH_NAMES.into_iter().zip(SH_NORMALIZATION);
     harmonics.chain([("TREE_ALIGNED_COS", FlatTree::ALIGNED_COS), ("TREE_MIN_HALF_MASS", FlatTree::MIN_HALF_MASS)])
 }
 
-/// The names of guiding-core's spherical-harmonic normalisation constants.
-const SH_NAMES: [&str; 5] = ["SH_K0", "SH_K1", "SH_K2", "SH_K3", "SH_K4"];
+/// The names of guiding-core's spherical-harmonic normalisation constants (one each: a
+/// change in their count fails to compile here).
+const SH_NAMES: [&str; SH_NORMALIZATION.len()] = ["SH_K0", "SH_K1", "SH_K2", "SH_K3", "SH_K4"];
 
 /// The whole shader.
 pub(super) fn source() -> String {
