@@ -165,7 +165,8 @@ mod tests {
                 let region = tree.locate(position, normal).unwrap();
                 // The locate.
                 let tree_index = if flat.trees_per_axis { normal.abs().max_position() } else { 0 };
-                let mut p = ((position - flat.low) * flat.inverse_extent).clamp(Vec3::ZERO, Vec3::splat(0.99999994));
+                let mut p = ((position - flat.low) * flat.inverse_extent)
+                    .clamp(Vec3::ZERO, Vec3::splat(crate::tree::square::ONE_BELOW));
                 let mut reference = flat.roots[tree_index];
                 while reference & FlatTree::LEAF == 0 {
                     let n = reference as usize;

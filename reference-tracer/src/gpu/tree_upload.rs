@@ -53,10 +53,10 @@ pub(super) fn write_params(tree: &SpatialDirectionalTree, params: &mut Params) {
     set_shape(params, tree);
 }
 
-/// The tree's region and node counts in `params` (they change at every refit).
+/// The tree's regions (its leaves) in `params` (they change at every refit); it has no
+/// fixed entries per region, so `guide_patches` stays unused.
 fn set_shape(params: &mut Params, tree: &SpatialDirectionalTree) {
     params.guide_regions = tree.leaf_count() as u32;
-    params.guide_patches = tree.directional_node_count() as u32;
 }
 
 /// The tree's flat arrays and the leaves and nodes its budget holds (which its buffers
