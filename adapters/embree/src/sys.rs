@@ -69,6 +69,50 @@ pub struct RTCRayHit {
     pub hit: RTCHit,
 }
 
+/// Lanes of Embree's widest ray packet.
+pub const PACKET_LANES: usize = 16;
+
+/// `struct RTCRay16`: 16 rays, each field a lane array (structure of arrays).
+#[repr(C, align(64))]
+#[derive(Clone, Copy, Debug, Default)]
+pub struct RTCRay16 {
+    pub org_x: [f32; PACKET_LANES],
+    pub org_y: [f32; PACKET_LANES],
+    pub org_z: [f32; PACKET_LANES],
+    pub tnear: [f32; PACKET_LANES],
+    pub dir_x: [f32; PACKET_LANES],
+    pub dir_y: [f32; PACKET_LANES],
+    pub dir_z: [f32; PACKET_LANES],
+    pub time: [f32; PACKET_LANES],
+    pub tfar: [f32; PACKET_LANES],
+    pub mask: [c_uint; PACKET_LANES],
+    pub id: [c_uint; PACKET_LANES],
+    pub flags: [c_uint; PACKET_LANES],
+}
+
+/// `struct RTCHit16`, with `RTC_MAX_INSTANCE_LEVEL_COUNT` = 1.
+#[repr(C, align(64))]
+#[derive(Clone, Copy, Debug, Default)]
+pub struct RTCHit16 {
+    pub Ng_x: [f32; PACKET_LANES],
+    pub Ng_y: [f32; PACKET_LANES],
+    pub Ng_z: [f32; PACKET_LANES],
+    pub u: [f32; PACKET_LANES],
+    pub v: [f32; PACKET_LANES],
+    pub primID: [c_uint; PACKET_LANES],
+    pub geomID: [c_uint; PACKET_LANES],
+    pub instID: [[c_uint; PACKET_LANES]; 1],
+    pub instPrimID: [[c_uint; PACKET_LANES]; 1],
+}
+
+/// `struct RTCRayHit16`.
+#[repr(C, align(64))]
+#[derive(Clone, Copy, Debug, Default)]
+pub struct RTCRayHit16 {
+    pub ray: RTCRay16,
+    pub hit: RTCHit16,
+}
+
 extern "C" {
     pub fn rtcNewDevice(config: *const c_char) -> RTCDevice;
     pub fn rtcReleaseDevice(device: RTCDevice);
@@ -94,6 +138,10 @@ extern "C" {
     /// Embree 4: no context argument; `args` may be NULL.
     pub fn rtcIntersect1(scene: RTCScene, rayhit: *mut RTCRayHit, args: *mut c_void);
     pub fn rtcOccluded1(scene: RTCScene, ray: *mut RTCRay, args: *mut c_void);
+    /// `valid`: 16 lanes, -1 where the lane's ray is traced, 0 where it is not (64-byte
+    /// aligned).
+    pub fn rtcIntersect16(valid: *const i32, scene: RTCScene, rayhit: *mut RTCRayHit16, args: *mut c_void);
+    pub fn rtcOccluded16(valid: *const i32, scene: RTCScene, ray: *mut RTCRay16, args: *mut c_void);
 }
 
 #[cfg(test)]
@@ -116,5 +164,11 @@ mod tests {
         assert_eq!(offset_of!(RTCHit, instID), 28);
         assert_eq!(offset_of!(RTCHit, instPrimID), 32);
         assert_eq!(offset_of!(RTCRayHit, hit), 48);
+        assert_eq!(size_of::<RTCRay16>(), 12 * 64);
+        assert_eq!(size_of::<RTCHit16>(), 9 * 64);
+        assert_eq!(align_of::<RTCRayHit16>(), 64);
+        assert_eq!(offset_of!(RTCRay16, tfar), 8 * 64);
+        assert_eq!(offset_of!(RTCHit16, geomID), 6 * 64);
+        assert_eq!(offset_of!(RTCRayHit16, hit), 12 * 64);
     }
 }

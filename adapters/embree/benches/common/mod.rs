@@ -10,9 +10,19 @@ use glam::{Vec3, Vec3A};
 use guiding_core::{Pcg32, Ray, Triangle};
 use guiding_embree::{sys, EmbreeIntersector};
 
-/// A UV sphere of `2·rings·segments` triangles inside a box of 12.
+/// A UV sphere of 100,000 triangles inside a box of 12.
 pub fn scene() -> Vec<Triangle> {
-    let (rings, segments) = (200, 250);
+    sphere_in_box(200, 250)
+}
+
+/// The same with a sphere of 240 triangles: the size of the project's test scenes.
+#[allow(dead_code)] // Only the packet benchmark uses it.
+pub fn small_scene() -> Vec<Triangle> {
+    sphere_in_box(10, 12)
+}
+
+/// A UV sphere of `2·rings·segments` triangles inside a box of 12.
+fn sphere_in_box(rings: u32, segments: u32) -> Vec<Triangle> {
     let point = |i: u32, j: u32| {
         let (theta, phi) = (PI * i as f32 / rings as f32, 2.0 * PI * j as f32 / segments as f32);
         Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin()) * 2.0
