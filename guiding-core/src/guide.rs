@@ -40,6 +40,16 @@ pub trait Guide: Sync + Sized {
     /// there (the caller then samples its BSDF alone).
     fn locate(&self, position: Vec3, normal: Vec3) -> Option<Self::Region>;
 
+    /// Whether `other` locates every point in the region this guide locates it in (the
+    /// same regions, built alike), so that a caller holding both (Q and W of
+    /// bidirectional guiding) may locate once for the two. The default says no, which is
+    /// always safe; a structure whose regions do not move as it learns (the hemisphere
+    /// grid's probes) compares what its `locate` reads.
+    fn locates_alike(&self, other: &Self) -> bool {
+        let _ = other;
+        false
+    }
+
     /// The region's current sampling distribution (the snapshot of the last rebuild).
     fn distribution(&self, region: Self::Region) -> Self::Distribution<'_>;
 

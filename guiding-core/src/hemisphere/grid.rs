@@ -524,6 +524,14 @@ impl Guide for HemisphereGrid {
             .map(|p| ProbeId(p as u32))
     }
 
+    fn locates_alike(&self, other: &Self) -> bool {
+        // What `locate` reads: the normal test, the probes and their lookup.
+        self.cos_max_normal_angle == other.cos_max_normal_angle
+            && self.positions == other.positions
+            && self.normals == other.normals
+            && self.lookup == other.lookup
+    }
+
     fn distribution(&self, probe: ProbeId) -> ProbeDistribution<'_> {
         let patches = self.patch_count();
         let start = probe.0 as usize * patches;

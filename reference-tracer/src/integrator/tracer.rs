@@ -211,6 +211,8 @@ pub struct PathTracer<'a, I: Intersector, G: Guide> {
     /// W, guiding the light subpaths of bdpt-guided and vpl-guided (see
     /// [`with_importance_guide`](Self::with_importance_guide)).
     pub(super) importance: Option<&'a G>,
+    /// Q and W locate alike (see [`Guide::locates_alike`]): a vertex locates once for both.
+    pub(super) shared_regions: bool,
 }
 
 // Every field is a reference or a number: a copy costs nothing, and the guides it
@@ -300,6 +302,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             carries_path: false,
             connection_threshold: 0.0,
             importance: None,
+            shared_regions: false,
         }
     }
 
@@ -307,6 +310,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
     pub fn with_guide(mut self, guide: Option<&'a G>) -> Self {
         self.guide = guide;
         self.carries_path = guide.is_some_and(|g| g.update_rule().integral == IntegralEstimator::PathContinuation);
+        self.shared_regions = self.guides_locate_alike();
         self
     }
 
@@ -348,7 +352,13 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
     /// vpl-guided learn and are guided by.
     pub fn with_importance_guide(mut self, importance: Option<&'a G>) -> Self {
         self.importance = importance;
+        self.shared_regions = self.guides_locate_alike();
         self
+    }
+
+    /// Whether Q and W are both here and locate alike.
+    fn guides_locate_alike(&self) -> bool {
+        matches!((self.guide, self.importance), (Some(q), Some(w)) if q.locates_alike(w))
     }
 
     /// W, where the tracer has it.

@@ -170,3 +170,29 @@ fn the_bsdf_sampled_estimate_averages_to_the_stratified_one() {
     let exact = grid.estimate_integral(probe, Vec3::Z, &lambertian, Vec2::ZERO);
     assert!((exact - 0.5 * grid.settings().initial_q).abs() < 1e-6 * exact.max(1e-30), "{exact}");
 }
+
+/// Two grids built alike over the same triangles locate alike (bidirectional guiding then
+/// locates once for Q and W), and find the same probe everywhere; a grid of other probes
+/// does not.
+#[test]
+fn grids_built_alike_locate_alike() {
+    let floor = [
+        crate::Triangle::new(Vec3::new(-1.0, 0.0, -1.0), Vec3::new(-1.0, 0.0, 1.0), Vec3::new(1.0, 0.0, 1.0)),
+        crate::Triangle::new(Vec3::new(-1.0, 0.0, -1.0), Vec3::new(1.0, 0.0, 1.0), Vec3::new(1.0, 0.0, -1.0)),
+    ];
+    let settings = HemisphereGridSettings { probe_count: Some(20), ..Default::default() };
+    let q = HemisphereGrid::build(&floor, settings).unwrap();
+    let mut w = HemisphereGrid::build(&floor, settings).unwrap();
+    // Learning moves no probe.
+    let probe = w.locate(Vec3::ZERO, Vec3::Y).unwrap();
+    w.update(probe, Vec3::Y, 1.0);
+    w.rebuild_sampling();
+    assert!(q.locates_alike(&w) && w.locates_alike(&q));
+    let mut rng = crate::Pcg32::new(4, 1);
+    for _ in 0..1000 {
+        let p = Vec3::new(rng.next_f32() * 2.0 - 1.0, 0.0, rng.next_f32() * 2.0 - 1.0);
+        assert_eq!(q.locate(p, Vec3::Y), w.locate(p, Vec3::Y));
+    }
+    let other = HemisphereGrid::build(&floor, HemisphereGridSettings { probe_count: Some(30), ..settings }).unwrap();
+    assert!(!q.locates_alike(&other));
+}

@@ -92,7 +92,8 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
             let mut sampled =
                 SubpathVertex::new(VertexKind::Light, point, normal, emission / position_pdf, position_pdf);
             sampled.light = Some(index);
-            sampled.importance_region = self.emission_region(point, normal);
+            // W's region here is located only once the shadow ray passes (see
+            // `bidirectional_sample`): most light samples are blocked.
             let shadow = Shadow::Segment { from: pt.point, normal: pt.normal, to: point };
             return Some(Connection { value, sampled: Some(sampled), pixel: None, shadow });
         }

@@ -26,6 +26,60 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
         next: &SubpathVertex<G::Region>,
         side: Side,
     ) -> f32 {
+        self.density_towards_with(vertex, previous, next, side, None)
+    }
+
+    /// [`density_towards`](Self::density_towards) of `vertex` back towards
+    /// `predecessor`, the vertex before it on its own subpath, by the other side's
+    /// sampling (`side`): the guide's part is the one the walk cached at `vertex`.
+    pub(super) fn density_back(
+        &self,
+        vertex: &SubpathVertex<G::Region>,
+        previous: Option<&SubpathVertex<G::Region>>,
+        predecessor: &SubpathVertex<G::Region>,
+        side: Side,
+    ) -> f32 {
+        self.density_towards_with(vertex, previous, predecessor, side, vertex.back_guide_pdf)
+    }
+
+    /// The guide's density per steradian at surface `vertex` towards `next` under
+    /// `side`'s sampling, where that side guides there: the part of
+    /// [`density_towards`](Self::density_towards) a walk can compute once per vertex.
+    pub(super) fn guide_density_towards(
+        &self,
+        vertex: &SubpathVertex<G::Region>,
+        next: &SubpathVertex<G::Region>,
+        side: Side,
+    ) -> Option<f32> {
+        let offset = next.point - vertex.point;
+        let distance = offset.length();
+        if vertex.kind != VertexKind::Surface || !distance.is_finite() || distance <= 0.0 {
+            return None;
+        }
+        let (guide, region) = match side {
+            Side::Camera => (self.guide, vertex.region),
+            Side::Light => (self.importance, vertex.importance_region),
+        };
+        match (guide, region) {
+            (Some(guide), Some(region)) if self.guide_share(side) > 0.0 => {
+                Some(guide.distribution(region).pdf(offset / distance))
+            }
+            _ => None,
+        }
+    }
+
+    /// [`density_towards`](Self::density_towards) with the guide's density towards
+    /// `next` given (`guide_pdf`, from [`guide_density_towards`]) or computed here.
+    ///
+    /// [`guide_density_towards`]: Self::guide_density_towards
+    fn density_towards_with(
+        &self,
+        vertex: &SubpathVertex<G::Region>,
+        previous: Option<&SubpathVertex<G::Region>>,
+        next: &SubpathVertex<G::Region>,
+        side: Side,
+        guide_pdf: Option<f32>,
+    ) -> f32 {
         let offset = next.point - vertex.point;
         let distance = offset.length();
         if !distance.is_finite() || distance <= 0.0 {
@@ -46,7 +100,8 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
                     };
                     match (guide, region) {
                         (Some(guide), Some(region)) if p_guide > 0.0 => {
-                            p_guide * guide.distribution(region).pdf(wi) + (1.0 - p_guide) * bsdf
+                            let guided = guide_pdf.unwrap_or_else(|| guide.distribution(region).pdf(wi));
+                            p_guide * guided + (1.0 - p_guide) * bsdf
                         }
                         _ => bsdf,
                     }
@@ -108,7 +163,7 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
             None => self.light_origin_pdf(pt),
         };
         let pt_minus_reverse = pt_minus.map_or(0.0, |pm| match qs {
-            Some(qs) => self.density_towards(pt, Some(qs), pm, Side::Light),
+            Some(qs) => self.density_back(pt, Some(qs), pm, Side::Light),
             None => {
                 let offset = pm.point - pt.point;
                 pt.area_density(self.emission_direction_pdf(pt, offset.normalize_or_zero()), pm)
@@ -116,7 +171,7 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
         });
         let qs_reverse = qs.map_or(0.0, |qs| self.density_towards(pt, pt_minus, qs, Side::Camera));
         let qs_minus_reverse = match (qs, qs_minus) {
-            (Some(qs), Some(qm)) => self.density_towards(qs, Some(pt), qm, Side::Camera),
+            (Some(qs), Some(qm)) => self.density_back(qs, Some(pt), qm, Side::Camera),
             _ => 0.0,
         };
         let mut sum = 0.0f32;
@@ -189,6 +244,9 @@ mod tests {
         light[0].pdf_fwd = tracer.light_origin_pdf(&light[0]);
         for j in 1..light.len() {
             light[j].wo = (light[j - 1].point - light[j].point).normalize();
+            // The camera walk cached W's density towards its own predecessor; a light
+            // walk caches Q's towards the vertex before it on the light side.
+            light[j].back_guide_pdf = tracer.guide_density_towards(&light[j], &light[j - 1], Side::Camera);
         }
         for j in 1..light.len() {
             let previous = (j >= 2).then(|| light[j - 2]);

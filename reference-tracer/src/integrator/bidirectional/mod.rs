@@ -95,7 +95,7 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
                 if (t == 1 && s <= 1) || edges > max_edges {
                     continue;
                 }
-                let Some(connection) = self.connect(camera, light, s, t, rng) else { continue };
+                let Some(mut connection) = self.connect(camera, light, s, t, rng) else { continue };
                 let mut value = connection.value;
                 if !(value.is_finite() && value.max_element() > 0.0) {
                     continue;
@@ -114,6 +114,10 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
                 value *= self.shadow_transmittance(&connection.shadow, counters);
                 if value.max_element() <= 0.0 {
                     continue;
+                }
+                if let Some(sampled) = &mut connection.sampled {
+                    // The weight reads W's density at the light point (bdpt-guided).
+                    sampled.importance_region = self.emission_region(sampled.point, sampled.normal);
                 }
                 if learning && s == 1 {
                     if let Some(sampled) = &connection.sampled {

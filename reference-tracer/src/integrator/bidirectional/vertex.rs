@@ -47,6 +47,11 @@ pub struct SubpathVertex<R> {
     pub(super) importance_region: Option<R>,
     /// Density per steradian of the direction sampled here (what the guide learns with).
     pub(super) scatter_pdf: f32,
+    /// bdpt-guided: the other side's guide density per steradian here towards the
+    /// previous vertex of this subpath (W's on the camera side, Q's on the light side),
+    /// where that side guides here. The walk needs it for the previous vertex's reverse
+    /// density, and every connection at this vertex again: computed once.
+    pub(super) back_guide_pdf: Option<f32>,
 }
 
 impl<R: Copy> SubpathVertex<R> {
@@ -65,6 +70,7 @@ impl<R: Copy> SubpathVertex<R> {
             region: None,
             importance_region: None,
             scatter_pdf: 0.0,
+            back_guide_pdf: None,
         }
     }
 

@@ -110,15 +110,20 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
             if !vertex.delta {
                 let normal = surface.shading.frame.normal;
                 vertex.region = self.guide.and_then(|guide| guide.locate(surface.point, normal));
-                vertex.importance_region = self.importance.and_then(|w| w.locate(surface.point, normal));
+                vertex.importance_region = if self.shared_regions {
+                    vertex.region
+                } else {
+                    self.importance.and_then(|w| w.locate(surface.point, normal))
+                };
             }
             let k = path.len();
             let previous = path[k - 1];
+            vertex.back_guide_pdf = self.guide_density_towards(&vertex, &previous, side.other());
             if !previous.delta {
                 let before = k.checked_sub(2).map(|i| path[i]);
                 vertex.pdf_fwd = self.density_towards(&previous, before.as_ref(), &vertex, side);
                 if let Some(before) = before {
-                    path[k - 2].pdf_rev = self.density_towards(&previous, Some(&vertex), &before, side.other());
+                    path[k - 2].pdf_rev = self.density_back(&previous, Some(&vertex), &before, side.other());
                 }
             }
             path.push(vertex);
