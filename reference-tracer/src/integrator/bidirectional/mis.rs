@@ -69,7 +69,7 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
     }
 
     /// [`density_towards`](Self::density_towards) with the guide's density towards
-    /// `next` given (`guide_pdf`, from [`guide_density_towards`]) or computed here.
+    /// `next` given (`guide_pdf`, from [`guide_density_towards`]) or found by it here.
     ///
     /// [`guide_density_towards`]: Self::guide_density_towards
     fn density_towards_with(
@@ -93,17 +93,12 @@ impl<I: Intersector, G: Guide> PathTracer<'_, I, G> {
                 (Some((material, shading)), Some(previous)) => {
                     let wo = (previous.point - vertex.point).normalize_or_zero();
                     let bsdf = material.pdf(&shading, wo, wi);
-                    let p_guide = self.guide_share(side);
-                    let (guide, region) = match side {
-                        Side::Camera => (self.guide, vertex.region),
-                        Side::Light => (self.importance, vertex.importance_region),
-                    };
-                    match (guide, region) {
-                        (Some(guide), Some(region)) if p_guide > 0.0 => {
-                            let guided = guide_pdf.unwrap_or_else(|| guide.distribution(region).pdf(wi));
+                    match guide_pdf.or_else(|| self.guide_density_towards(vertex, next, side)) {
+                        Some(guided) => {
+                            let p_guide = self.guide_share(side);
                             p_guide * guided + (1.0 - p_guide) * bsdf
                         }
-                        _ => bsdf,
+                        None => bsdf,
                     }
                 }
                 _ => 0.0,
