@@ -85,6 +85,22 @@ impl Intersector for SceneIntersector {
             SceneIntersector::Embree(i) => i.occluded(ray),
         }
     }
+
+    fn intersect_many(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        match self {
+            SceneIntersector::Obvhs(i) => i.intersect_many(rays, hits),
+            #[cfg(feature = "embree")]
+            SceneIntersector::Embree(i) => i.intersect_many(rays, hits),
+        }
+    }
+
+    fn occluded_many(&self, rays: &[Ray], occluded: &mut [bool]) {
+        match self {
+            SceneIntersector::Obvhs(i) => i.occluded_many(rays, occluded),
+            #[cfg(feature = "embree")]
+            SceneIntersector::Embree(i) => i.occluded_many(rays, occluded),
+        }
+    }
 }
 
 #[cfg(test)]

@@ -231,6 +231,87 @@ impl Intersector for EmbreeIntersector {
         unsafe { sys::rtcOccluded1(self.scene, &mut embree_ray, std::ptr::null_mut()) };
         embree_ray.tfar == f32::NEG_INFINITY
     }
+
+    /// Sixteen rays at a time through `rtcIntersect16`.
+    fn intersect_many(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        let count = rays.len().min(hits.len());
+        if self.original_index.is_empty() {
+            hits[..count].fill(None);
+            return;
+        }
+        let mut packet = sys::RTCRayHit16::default();
+        for (rays, hits) in rays[..count].chunks(sys::PACKET_LANES).zip(hits[..count].chunks_mut(sys::PACKET_LANES)) {
+            let valid = Self::fill_packet(rays, &mut packet.ray);
+            packet.hit.geomID = [sys::RTC_INVALID_GEOMETRY_ID; sys::PACKET_LANES];
+            packet.hit.instID = [[sys::RTC_INVALID_GEOMETRY_ID; sys::PACKET_LANES]];
+            // SAFETY: committed scene; `packet` and `valid` are 64-byte-aligned RTCRayHit16
+            // and lane mask, every lane the mask turns on filled.
+            unsafe { sys::rtcIntersect16(valid.0.as_ptr(), self.scene, &mut packet, std::ptr::null_mut()) };
+            for (lane, hit) in hits.iter_mut().enumerate() {
+                let found = valid.0[lane] != 0 && packet.hit.geomID[lane] != sys::RTC_INVALID_GEOMETRY_ID;
+                *hit = found.then(|| {
+                    let primitive = packet.hit.primID[lane];
+                    Hit {
+                        t: packet.ray.tfar[lane],
+                        primitive: if self.identity { primitive } else { self.original_index[primitive as usize] },
+                        barycentrics: Vec2::new(packet.hit.u[lane], packet.hit.v[lane]),
+                    }
+                });
+            }
+        }
+    }
+
+    /// Sixteen rays at a time through `rtcOccluded16`.
+    fn occluded_many(&self, rays: &[Ray], occluded: &mut [bool]) {
+        let count = rays.len().min(occluded.len());
+        if self.original_index.is_empty() {
+            occluded[..count].fill(false);
+            return;
+        }
+        let mut packet = sys::RTCRay16::default();
+        for (rays, occluded) in
+            rays[..count].chunks(sys::PACKET_LANES).zip(occluded[..count].chunks_mut(sys::PACKET_LANES))
+        {
+            let valid = Self::fill_packet(rays, &mut packet);
+            // SAFETY: committed scene; `packet` and `valid` are 64-byte-aligned RTCRay16 and
+            // lane mask, every lane the mask turns on filled.
+            unsafe { sys::rtcOccluded16(valid.0.as_ptr(), self.scene, &mut packet, std::ptr::null_mut()) };
+            for (lane, blocked) in occluded.iter_mut().enumerate() {
+                *blocked = valid.0[lane] != 0 && packet.tfar[lane] == f32::NEG_INFINITY;
+            }
+        }
+    }
+}
+
+/// A packet's lane mask: -1 traces the lane, 0 leaves it out (Embree wants it aligned
+/// as the packet is).
+#[repr(C, align(64))]
+struct LaneMask([i32; sys::PACKET_LANES]);
+
+impl EmbreeIntersector {
+    /// Fills `packet`'s rays from `rays` (at most [`sys::PACKET_LANES`]) and returns the
+    /// lane mask: the lanes past `rays` and those holding an untraceable ray are off.
+    #[inline]
+    fn fill_packet(rays: &[Ray], packet: &mut sys::RTCRay16) -> LaneMask {
+        let mut valid = LaneMask([0; sys::PACKET_LANES]);
+        for (lane, ray) in rays.iter().enumerate().take(sys::PACKET_LANES) {
+            let r = Self::embree_ray(ray);
+            packet.org_x[lane] = r.org_x;
+            packet.org_y[lane] = r.org_y;
+            packet.org_z[lane] = r.org_z;
+            packet.tnear[lane] = r.tnear;
+            packet.dir_x[lane] = r.dir_x;
+            packet.dir_y[lane] = r.dir_y;
+            packet.dir_z[lane] = r.dir_z;
+            packet.time[lane] = r.time;
+            packet.tfar[lane] = r.tfar;
+            packet.mask[lane] = r.mask;
+            packet.id[lane] = r.id;
+            packet.flags[lane] = r.flags;
+            valid.0[lane] = if ray.is_traceable() { -1 } else { 0 };
+        }
+        valid
+    }
 }
 
 impl Drop for EmbreeIntersector {
@@ -287,6 +368,61 @@ mod tests {
         assert!(embree.intersect(&Ray::new(Vec3::NAN, Vec3::NEG_Y)).is_none());
         assert!(embree.intersect(&Ray::new(Vec3::Y, Vec3::ZERO)).is_none());
         assert!(!embree.occluded(&Ray::segment(Vec3::Y, Vec3::NEG_Y, 2.0, 1.0)));
+    }
+
+    /// Packets answer as single rays do, to the bit: full and partial packets, rays that
+    /// miss, untraceable rays and segments that stop short.
+    #[test]
+    fn packets_answer_as_single_rays() {
+        // A crumpled sheet of triangles, with a NaN one so indices need remapping.
+        let mut triangles = vec![Triangle::new(Vec3::NAN, Vec3::X, Vec3::Y)];
+        let height = |x: f32, z: f32| (3.0 * x).sin() * (2.0 * z).cos() * 0.3;
+        let n = 12;
+        for i in 0..n {
+            for j in 0..n {
+                let p = |a: usize, b: usize| {
+                    let (x, z) = (a as f32 / n as f32 * 2.0 - 1.0, b as f32 / n as f32 * 2.0 - 1.0);
+                    Vec3::new(x, height(x, z), z)
+                };
+                triangles.push(Triangle::new(p(i, j), p(i, j + 1), p(i + 1, j + 1)));
+                triangles.push(Triangle::new(p(i, j), p(i + 1, j + 1), p(i + 1, j)));
+            }
+        }
+        let embree = EmbreeIntersector::build(&triangles).unwrap();
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let mut rays: Vec<Ray> = (0..53)
+            .map(|_| {
+                let origin = Vec3::new(next() * 2.0 - 1.0, 0.6 + 0.4 * next(), next() * 2.0 - 1.0);
+                let direction = Vec3::new(next() - 0.5, -0.3 - next(), next() - 0.5).normalize();
+                Ray::segment(origin, direction, 0.0, 0.8 + 2.0 * next())
+            })
+            .collect();
+        rays[7] = Ray::new(Vec3::NAN, Vec3::NEG_Y);
+        rays[20] = Ray::new(Vec3::Y, Vec3::ZERO);
+        rays[33] = Ray::new(Vec3::new(0.0, 2.0, 0.0), Vec3::Y);
+        for count in [rays.len(), 16, 5] {
+            let rays = &rays[..count];
+            let mut hits = vec![None; count];
+            let mut blocked = vec![true; count];
+            embree.intersect_many(rays, &mut hits);
+            embree.occluded_many(rays, &mut blocked);
+            for (k, ray) in rays.iter().enumerate() {
+                assert_eq!(hits[k], embree.intersect(ray), "ray {k} of {count}");
+                assert_eq!(blocked[k], embree.occluded(ray), "ray {k} of {count}");
+            }
+            assert!(hits.iter().filter(|h| h.is_some()).count() > count / 3, "most rays hit the sheet");
+            assert!(hits[..5].iter().flatten().all(|h| h.primitive >= 1), "indices are the caller's");
+        }
+        let empty = EmbreeIntersector::build(&[]).unwrap();
+        let mut hits = vec![Some(Hit { t: 1.0, primitive: 0, barycentrics: Vec2::ZERO }); 3];
+        empty.intersect_many(&rays[..3], &mut hits);
+        assert_eq!(hits, vec![None; 3]);
     }
 
     #[test]

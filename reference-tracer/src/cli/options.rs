@@ -338,6 +338,14 @@ pub struct TraceOptions {
     /// leave out what splitting adds, and it splits too often.
     #[arg(long, value_parser = parse_switch)]
     pub(super) splitting: Option<bool>,
+    /// nee: camera paths in flight together on each thread, their rays traced as one
+    /// batch (Embree's 16-ray packets) and their vertices shaded lane after lane; 1 traces
+    /// one path at a time. Each path draws its own pixel's random numbers as alone, so the
+    /// image is the same to the last bit whatever the lanes (where no light or environment
+    /// guide learns from the light samples; with one, the same within noise). Default 16:
+    /// 1.2x the paths/s of one path at a time on door and cornell.
+    #[arg(long, default_value_t = crate::integrator::DEFAULT_LANES, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    pub(super) lanes: u32,
     /// --roulette efficiency: cells along the scene's longest side, 1..=128. 32 measured
     /// best on the living room 1280×720 (guided-nee with tiles, 60 s, seed 41, one run
     /// each): relMSE × spp over paths/s 1.04e-5 against 1.13e-5 with 16 cells (per

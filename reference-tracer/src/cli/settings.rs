@@ -220,6 +220,7 @@ impl TraceOptions {
                 _ => Roulette::Throughput,
             },
             splitting: self.splitting.unwrap_or(false),
+            lanes: self.lanes,
         }
     }
 

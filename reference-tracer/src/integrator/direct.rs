@@ -15,6 +15,27 @@ use crate::color::luminance;
 use crate::environment::Environment;
 use crate::sampling::power_heuristic;
 
+/// A light sample drawn at a vertex and waiting for its shadow ray: the ray, and what
+/// [`PathTracer::finish_light_sample`] needs once it knows what passed.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct PendingLightSample {
+    /// The shadow ray, from the surface to the light (ending short of it) or the
+    /// environment.
+    pub(super) ray: Ray,
+    /// Towards the light (unit).
+    wi: Vec3,
+    /// The BSDF times cos θ towards it.
+    f: Vec3,
+    /// The radiance the light sends back along `wi`.
+    emitted: Vec3,
+    /// The light sample's density per steradian, selection and gate in it.
+    light_pdf: f32,
+    /// The area light chosen and its point pdf (per steradian, before selection).
+    chosen: Option<(u32, f32)>,
+    /// The environment guide's cell and lobe.
+    tile: Option<(EnvCell, EnvSample)>,
+}
+
 /// One light sample's result: the radiance it adds (MIS-weighted against scattering)
 /// and, where it reached the light, the sample itself for learners that learn from
 /// light samples (`IntegratorSettings::nee_kickstart`).
@@ -76,34 +97,54 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
     }
 
     /// One light sample (area light or environment) at `surface`, MIS-weighted against
-    /// scattering.
+    /// scattering: [`draw_light_sample`](Self::draw_light_sample), its shadow ray, and
+    /// [`finish_light_sample`](Self::finish_light_sample).
     pub(super) fn direct_light(
         &self,
         surface: &SurfaceInteraction,
         cells: NeeCells,
-        (distribution, guide_share, focal_share): (Option<&G::Distribution<'_>>, f32, f32),
+        mixture: (Option<&G::Distribution<'_>>, f32, f32),
         rng: &mut Pcg32,
         (clock, records): (&mut GuideClock, &mut NeeRecords),
         counters: &mut PathCounters,
     ) -> DirectLight {
+        let Some(pending) = self.draw_light_sample(surface, cells, rng, (clock, records), counters) else {
+            return DirectLight::default();
+        };
+        let transmittance = self.transmittance(pending.ray, counters);
+        self.finish_light_sample(&pending, transmittance, surface, cells, mixture, (clock, records), counters.paths)
+    }
+
+    /// The first half of a light sample at `surface`: the light (or the environment)
+    /// picked, the point or direction drawn and the BSDF there, up to the shadow ray it
+    /// needs (counted in `counters`); `None` where it can bring nothing (what it taught the
+    /// light and environment guides then is in `records`; `clock` times the environment
+    /// guide's sample).
+    pub(super) fn draw_light_sample(
+        &self,
+        surface: &SurfaceInteraction,
+        cells: NeeCells,
+        rng: &mut Pcg32,
+        (clock, records): (&mut GuideClock, &mut NeeRecords),
+        counters: &mut PathCounters,
+    ) -> Option<PendingLightSample> {
         let SurfaceInteraction { point, geometric_normal, wo, ref material, ref shading } = *surface;
-        let nothing = DirectLight::default();
         let (u_choice, u_select, u) = (rng.next_f32(), rng.next_f32(), rng.next_vec2());
         // The gate may leave this vertex's light to the scattered direction; the number is
         // drawn only where it can, so ungated paths keep their random streams.
         let gate = cells.probability;
         if gate < 1.0 && rng.next_f32() >= gate {
-            return nothing;
+            return None;
         }
         // The light chosen and its point pdf (per steradian, before selection), for learning.
         let mut chosen: Option<(u32, f32)> = None;
         // The environment guide's cell and lobe, for learning.
         let mut tile: Option<(EnvCell, EnvSample)> = None;
         let (wi, emitted, light_pdf, distance) = if u_choice < self.environment_choice {
-            let Some(environment) = &self.scene.environment else { return nothing };
+            let environment = self.scene.environment.as_ref()?;
             match self.environment_guide {
                 Some(guide) => {
-                    let Some(cell) = guide.locate(point) else { return nothing };
+                    let cell = guide.locate(point)?;
                     let s = clock.time(|| guide.distribution(cell).sample_lobe(u_select, u));
                     tile = Some((cell, s));
                     (
@@ -114,15 +155,15 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                     )
                 }
                 None => {
-                    let Some(s) = environment.sample(u_select, u) else { return nothing };
+                    let s = environment.sample(u_select, u)?;
                     (s.wi, s.radiance, gate * self.environment_choice * s.pdf, f32::INFINITY)
                 }
             }
         } else {
-            let Some((light, probability)) = self.select_light(cells.light, u_select) else { return nothing };
+            let (light, probability) = self.select_light(cells.light, u_select)?;
             let Some(s) = self.scene.lights.sample_point(light, point, u) else {
                 self.learn_light(cells, light, (0.0, false), counters.paths, &mut records.lights);
-                return nothing;
+                return None;
             };
             chosen = Some((light, s.pdf));
             (s.wi, s.radiance, gate * (1.0 - self.environment_choice) * probability * s.pdf, s.distance)
@@ -131,7 +172,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             if let Some((cell, sample)) = tile {
                 self.learn_environment(cell, &sample, Vec3::ZERO, &mut records.environment);
             }
-            return nothing;
+            return None;
         }
         let f = material.eval(shading, wo, wi);
         if f == Vec3::ZERO {
@@ -141,7 +182,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             if let Some((cell, sample)) = tile {
                 self.learn_environment(cell, &sample, Vec3::ZERO, &mut records.environment);
             }
-            return nothing;
+            return None;
         }
         let origin = self.spawn(point, geometric_normal, wi);
         let t_max = if distance.is_finite() {
@@ -154,18 +195,39 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             f32::INFINITY
         };
         counters.rays += 1;
-        let transmittance = self.transmittance(Ray::segment(origin, wi, 0.0, t_max), counters);
+        let ray = Ray::segment(origin, wi, 0.0, t_max);
+        Some(PendingLightSample { ray, wi, f, emitted, light_pdf, chosen, tile })
+    }
+
+    /// The second half of a light sample drawn at `surface`: what passed along its
+    /// shadow ray (`transmittance`: 0 blocked, 1 clear) taught to the light and
+    /// environment guides (`path`: the path's number, for the gate's stride), and its
+    /// radiance, MIS-weighted against the scattering `mixture` (the guide's distribution
+    /// and share, the focal share).
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn finish_light_sample(
+        &self,
+        pending: &PendingLightSample,
+        transmittance: f32,
+        surface: &SurfaceInteraction,
+        cells: NeeCells,
+        (distribution, guide_share, focal_share): (Option<&G::Distribution<'_>>, f32, f32),
+        (clock, records): (&mut GuideClock, &mut NeeRecords),
+        path: u64,
+    ) -> DirectLight {
+        let SurfaceInteraction { wo, ref material, ref shading, .. } = *surface;
+        let PendingLightSample { wi, f, emitted, light_pdf, chosen, tile, .. } = *pending;
         let occluded = transmittance <= 0.0;
         if let Some((light, point_pdf)) = chosen {
             // Eq. (3)'s ‖C‖∞: the unshadowed contribution of the whole light.
             let contribution = (f * emitted / point_pdf).max_element();
-            self.learn_light(cells, light, (contribution, !occluded), counters.paths, &mut records.lights);
+            self.learn_light(cells, light, (contribution, !occluded), path, &mut records.lights);
         }
         if let Some((cell, sample)) = tile {
             self.learn_environment(cell, &sample, f * transmittance, &mut records.environment);
         }
         if occluded {
-            return nothing;
+            return DirectLight::default();
         }
         let kickstart = self.kickstarts();
         let scatter_pdf = if self.settings.nee_weighs_guide {

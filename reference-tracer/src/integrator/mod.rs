@@ -11,6 +11,7 @@
 mod bidirectional;
 mod counters;
 mod direct;
+mod lanes;
 mod light_path;
 mod method;
 mod path;
@@ -19,9 +20,10 @@ mod tracer;
 
 pub use bidirectional::{BidirectionalScratch, VirtualPointLights};
 pub use counters::{PathCounters, TIMED_PATH_STRIDE};
+pub use lanes::LaneScratch;
 pub use method::{EnvironmentSampling, LightSelection, Method};
 pub use settings::{
-    IntegratorSettings, Roulette, DEFAULT_CONNECTION_ROULETTE, DEFAULT_GUIDE_MIN_ALPHA, DEFAULT_VPL_MIN_DISTANCE,
-    DEFAULT_VPL_PATHS,
+    IntegratorSettings, Roulette, DEFAULT_CONNECTION_ROULETTE, DEFAULT_GUIDE_MIN_ALPHA, DEFAULT_LANES,
+    DEFAULT_VPL_MIN_DISTANCE, DEFAULT_VPL_PATHS,
 };
 pub use tracer::{NeeRecords, PathScratch, PathTracer, VertexStrategies};

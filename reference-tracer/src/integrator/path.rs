@@ -428,19 +428,31 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         light_pdf: impl FnOnce(Vec3, NeeCells) -> f32,
         path: &mut PathRecorder<G::Region, VertexStrategies>,
     ) -> Vec3 {
-        let (weight, light_pdf) = match previous {
-            Some((from, pdf, false, cells)) if self.estimates_nee() => {
-                let light_pdf = cells.probability * light_pdf(from, cells);
-                (power_heuristic(pdf, light_pdf), light_pdf)
-            }
-            _ => (1.0, 0.0),
-        };
+        let (weight, light_pdf) = self.emission_weight(previous, light_pdf);
         path.arrive(weight * luminance(emitted));
         if self.kickstarts() {
             path.arrive_learned_only((1.0 - weight) * luminance(emitted));
             path.add_density(light_pdf);
         }
         emitted * weight
+    }
+
+    /// The MIS weight of `emitted` light reached by the direction scattered from
+    /// `previous` (point, mixture pdf, delta, cells), and next-event estimation's density
+    /// of the same point (`light_pdf(from, cells)`, gated), 0 where it could not have
+    /// found it (then the weight is 1).
+    pub(super) fn emission_weight(
+        &self,
+        previous: Option<(Vec3, f32, bool, NeeCells)>,
+        light_pdf: impl FnOnce(Vec3, NeeCells) -> f32,
+    ) -> (f32, f32) {
+        match previous {
+            Some((from, pdf, false, cells)) if self.estimates_nee() => {
+                let light_pdf = cells.probability * light_pdf(from, cells);
+                (power_heuristic(pdf, light_pdf), light_pdf)
+            }
+            _ => (1.0, 0.0),
+        }
     }
 
     /// Teaches the finished path to every learner: the directional guide its Eq. (1)

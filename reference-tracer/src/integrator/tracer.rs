@@ -71,6 +71,8 @@ pub struct PathScratch<R, B = ()> {
     /// Copies of the path split off and not yet traced.
     pub(super) branches: Vec<Branch>,
     pub(super) clock: GuideClock,
+    /// The lane loop's paths and batches ([`PathTracer::radiance_in_lanes`]).
+    pub lanes: super::LaneScratch,
 }
 
 impl<R, B: Default> Default for PathScratch<R, B> {
@@ -83,6 +85,7 @@ impl<R, B: Default> Default for PathScratch<R, B> {
             roulette_vertices: Vec::new(),
             branches: Vec::new(),
             clock: GuideClock::default(),
+            lanes: super::LaneScratch::default(),
         }
     }
 }

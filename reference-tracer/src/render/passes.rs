@@ -33,11 +33,26 @@ pub(super) fn camera_pass<I: Intersector, G: Guide>(
         (scratch.records, scratch.nee_records) = (taken.guide, taken.nee);
         ReturningScratch { scratch, pool: &pool }
     };
-    let pass = pixel_pass(film, pass_seed, scratch, |worker, (x, y), rng, counters| {
-        let ray = tracer.camera_ray(x, y, rng);
-        let estimate = image_estimates.pixel(y as usize * width + x as usize);
-        tracer.radiance(ray, estimate, rng, &mut worker.scratch, counters)
-    });
+    let pass = if tracer.traces_in_lanes() {
+        // Rows enough that a task's lanes are full for all but a sliver of its paths: a
+        // lane whose path ends takes the next pixel, and only the task's last paths run
+        // with lanes empty beside them.
+        let lanes = tracer.settings().lanes as usize;
+        let rows = (lanes * PIXELS_PER_LANE).div_ceil(width.max(1)).max(1);
+        row_pass(film, rows, scratch, |worker, y, pixels, counters| {
+            let first = y as usize * width;
+            let rng_of = |i: usize| pixel_rng(pass_seed, (first + i) as u64);
+            let pixel_of = |i: usize| (((first + i) % width) as u32, ((first + i) / width) as u32);
+            let PathScratch { lanes, nee_records, .. } = &mut worker.scratch;
+            tracer.radiance_in_lanes(pixels, pixel_of, rng_of, lanes, nee_records, counters);
+        })
+    } else {
+        pixel_pass(film, pass_seed, scratch, |worker, (x, y), rng, counters| {
+            let ray = tracer.camera_ray(x, y, rng);
+            let estimate = image_estimates.pixel(y as usize * width + x as usize);
+            tracer.radiance(ray, estimate, rng, &mut worker.scratch, counters)
+        })
+    };
     *records = pool.into_inner().unwrap_or_else(|poisoned| poisoned.into_inner());
     pass
 }
@@ -114,8 +129,7 @@ impl Drop for Tally<'_> {
 
 /// One sample per pixel from `sample` (given per-thread scratch made by `scratch`, the
 /// pixel, its generator and counters), added to `film`; the pass's counters and
-/// radiance sum. Rows come back in order, so the pass sum is added up in the same order
-/// on every run: renders that do not learn are reproducible to the last bit.
+/// radiance sum.
 fn pixel_pass<S>(
     film: &mut Film,
     pass_seed: u64,
@@ -123,29 +137,69 @@ fn pixel_pass<S>(
     sample: impl Fn(&mut S, (u32, u32), &mut Pcg32, &mut PathCounters) -> Vec3 + Sync + Send,
 ) -> (PathCounters, [f64; 3]) {
     let width = film.width();
-    let rows: Vec<(PathCounters, [f64; 3])> = film
+    row_pass(film, 1, scratch, |scratch, y, row, counters| {
+        for (x, radiance) in row.iter_mut().enumerate() {
+            let mut rng = pixel_rng(pass_seed, (y as usize * width + x) as u64);
+            *radiance = sample(scratch, (x as u32, y), &mut rng, counters);
+        }
+    })
+}
+
+/// Pixels a task of the lane loop holds per lane, at least.
+const PIXELS_PER_LANE: usize = 32;
+
+/// One sample per pixel, `rows` rows at a time from `sample_rows` (given per-thread
+/// scratch made by `scratch`, the first row's y, the samples of its rows to fill, row
+/// after row, and counters), added to `film`; the pass's counters and radiance sum.
+/// Rows are summed one by one and come back in order, so the pass sum is added up in
+/// the same order on every run, whatever `rows`: renders that do not learn are
+/// reproducible to the last bit.
+fn row_pass<S>(
+    film: &mut Film,
+    rows: usize,
+    scratch: impl Fn() -> S + Sync + Send,
+    sample_rows: impl Fn(&mut S, u32, &mut [Vec3], &mut PathCounters) + Sync + Send,
+) -> (PathCounters, [f64; 3]) {
+    let width = film.width();
+    let rows = rows.max(1);
+    let tasks: Vec<(PathCounters, Vec<[f64; 3]>)> = film
         .pixels_mut()
-        .par_chunks_mut(width)
+        .par_chunks_mut(width * rows)
         .enumerate()
-        .map_init(scratch, |scratch, (y, row)| {
-            let mut counters = PathCounters::default();
-            let mut row_sum = [0.0f64; 3];
-            for (x, pixel) in row.iter_mut().enumerate() {
-                let mut rng = pixel_rng(pass_seed, (y * width + x) as u64);
-                let radiance = sample(scratch, (x as u32, y as u32), &mut rng, &mut counters);
-                // A NaN or infinite sample would poison the pixel for good: count the
-                // path as lost instead (it never happens with valid scenes).
-                let radiance = if radiance.is_finite() { radiance } else { Vec3::ZERO };
-                Film::add(pixel, radiance);
-                for c in 0..3 {
-                    row_sum[c] += radiance[c] as f64;
-                }
-            }
-            (counters, row_sum)
-        })
+        .map_init(
+            || (scratch(), Vec::new()),
+            |(scratch, samples), (task, pixels)| {
+                let mut counters = PathCounters::default();
+                samples.clear();
+                samples.resize(pixels.len(), Vec3::ZERO);
+                sample_rows(scratch, (task * rows) as u32, samples, &mut counters);
+                let row_sums = pixels
+                    .chunks_mut(width)
+                    .zip(samples.chunks(width))
+                    .map(|(pixels, samples)| {
+                        let mut row_sum = [0.0f64; 3];
+                        for (pixel, &radiance) in pixels.iter_mut().zip(samples) {
+                            // A NaN or infinite sample would poison the pixel for good:
+                            // count the path as lost instead (it never happens with valid
+                            // scenes).
+                            let radiance = if radiance.is_finite() { radiance } else { Vec3::ZERO };
+                            Film::add(pixel, radiance);
+                            for c in 0..3 {
+                                row_sum[c] += radiance[c] as f64;
+                            }
+                        }
+                        row_sum
+                    })
+                    .collect();
+                (counters, row_sums)
+            },
+        )
         .collect();
-    rows.iter().fold((PathCounters::default(), [0.0f64; 3]), |(c, s), (rc, rs)| {
-        (c + *rc, [s[0] + rs[0], s[1] + rs[1], s[2] + rs[2]])
+    tasks.iter().fold((PathCounters::default(), [0.0f64; 3]), |(c, mut s), (tc, row_sums)| {
+        for rs in row_sums {
+            s = [s[0] + rs[0], s[1] + rs[1], s[2] + rs[2]];
+        }
+        (c + *tc, s)
     })
 }
 
