@@ -107,11 +107,12 @@ pub enum Roulette {
     },
 }
 
-/// [`IntegratorSettings::lanes`] by default (`--lanes`): Embree's packet width. nee's
-/// paths/s in 16 lanes ÷ one path at a time, 30 s, seed 41: door 160×120 1.27/1.06 M,
-/// cornell 128² 1.96/1.66 M (32 lanes: 1.29 and 2.12 M; within this machine's noise of
-/// 16 in alternating 10 s runs).
-pub const DEFAULT_LANES: u32 = 16;
+/// [`IntegratorSettings::lanes`] by default (`--lanes`): one path at a time, until the
+/// guided methods run in lanes too. In 16 lanes (Embree's packet width) nee traces,
+/// 30 s, seed 41: door 160×120 1.27 M paths/s against 1.06 M, cornell 128² 1.96 M
+/// against 1.66 M; with nee alone faster, the guided methods' equal-time figures against
+/// it would move by the speed-up, not by what guiding does.
+pub const DEFAULT_LANES: u32 = 1;
 
 /// [`IntegratorSettings::vpl_paths`] by default.
 pub const DEFAULT_VPL_PATHS: u32 = 64;
