@@ -17,6 +17,7 @@ mod method;
 mod path;
 mod settings;
 mod tracer;
+mod vertex;
 
 pub use bidirectional::{BidirectionalScratch, VirtualPointLights};
 pub use counters::{PathCounters, TIMED_PATH_STRIDE};
