@@ -6,10 +6,9 @@
 
 mod support;
 
-use guiding_core::HemisphereGridSettings;
-use reference_tracer::integrator::{IntegratorSettings, Method, Roulette};
+use reference_tracer::integrator::{IntegratorSettings, Method};
 use reference_tracer::output::Image;
-use support::{render_image, render_scheduled, repository_scene, settings, Schedule};
+use support::{render_image, repository_scene, settings};
 
 fn bits(image: &Image) -> Vec<u32> {
     image.pixels.iter().flat_map(|p| [p.x.to_bits(), p.y.to_bits(), p.z.to_bits()]).collect()
@@ -46,26 +45,5 @@ fn nee_in_lanes_renders_the_image_of_one_path_at_a_time() {
         for lanes in [5, 16] {
             assert_eq!(bits(&one), bits(&render(lanes)), "{scene}: {lanes} lanes changed the image");
         }
-    }
-}
-
-/// guided-nee's frozen passes run in lanes (its training passes one path at a time, as
-/// they learn from each path as it goes), with the guide, the learned shares and the
-/// efficiency-aware roulette reading what the training taught: on one thread (so the
-/// training is the same) the image is the one-path loop's to the last bit.
-#[test]
-fn guided_nee_in_lanes_renders_the_image_of_one_path_at_a_time() {
-    let path = repository_scene("door", 24, 16);
-    let guide = HemisphereGridSettings { probe_count: Some(60), ..Default::default() };
-    for roulette in [Roulette::Throughput, Roulette::Efficiency { cells: 8 }] {
-        let render = |lanes| {
-            let integrator = IntegratorSettings { lanes, roulette, ..settings(Method::GuidedNee) };
-            let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
-            pool.install(|| render_scheduled(&path, integrator, Some(guide.into()), 16, 29, Schedule::Iterative))
-        };
-        let (one, statistics) = render(1);
-        assert!(statistics.training_passes < 16, "{roulette:?}: no frozen pass");
-        assert!(one.pixels.iter().any(|p| p.max_element() > 0.0), "{roulette:?}: a black image");
-        assert_eq!(bits(&one), bits(&render(16).0), "{roulette:?}: 16 lanes changed the image");
     }
 }

@@ -23,7 +23,7 @@ pub(super) struct PendingLightSample {
     /// environment.
     pub(super) ray: Ray,
     /// Towards the light (unit).
-    pub(super) wi: Vec3,
+    wi: Vec3,
     /// The BSDF times cos θ towards it.
     f: Vec3,
     /// The radiance the light sends back along `wi`.
@@ -103,7 +103,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         &self,
         surface: &SurfaceInteraction,
         cells: NeeCells,
-        (distribution, guide_share, focal_share): (Option<&G::Distribution<'_>>, f32, f32),
+        mixture: (Option<&G::Distribution<'_>>, f32, f32),
         rng: &mut Pcg32,
         (clock, records): (&mut GuideClock, &mut NeeRecords),
         counters: &mut PathCounters,
@@ -112,30 +112,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             return DirectLight::default();
         };
         let transmittance = self.transmittance(pending.ray, counters);
-        let SurfaceInteraction { wo, ref material, ref shading, .. } = *surface;
-        let scatter_pdf = |wi| {
-            if self.settings.nee_weighs_guide {
-                let guide = distribution.map(|distribution| (clock.time(|| distribution.pdf(wi)), guide_share));
-                self.scatter_pdf(material, shading, wo, wi, guide, focal_share)
-            } else {
-                let guide_share = if distribution.is_some() { guide_share } else { 0.0 };
-                nee_partner_pdf(material.pdf(shading, wo, wi), guide_share, focal_share)
-            }
-        };
-        let radiance = self.finish_light_sample(&pending, transmittance, cells, scatter_pdf, records, counters.paths);
-        // Learning from the sample weighs it by the density of both strategies that draw
-        // its direction (the balance heuristic's deterministic mixture), the guide's in it.
-        let sample = (self.kickstarts() && transmittance > 0.0).then(|| {
-            let wi = pending.wi;
-            let guide = distribution.map(|distribution| (distribution.pdf(wi), guide_share));
-            LightSampleRecord {
-                direction: wi,
-                incident: luminance(pending.emitted) * transmittance,
-                light_pdf: pending.light_pdf,
-                scatter_pdf: self.scatter_pdf(material, shading, wo, wi, guide, focal_share),
-            }
-        });
-        DirectLight { radiance, sample }
+        self.finish_light_sample(&pending, transmittance, surface, cells, mixture, (clock, records), counters.paths)
     }
 
     /// The first half of a light sample at `surface`: the light (or the environment)
@@ -222,20 +199,23 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         Some(PendingLightSample { ray, wi, f, emitted, light_pdf, chosen, tile })
     }
 
-    /// The second half of a light sample: what passed along its shadow ray
-    /// (`transmittance`: 0 blocked, 1 clear) taught to the light and environment guides
-    /// (`path`: the path's number, for the gate's stride), and its radiance, MIS-weighted
-    /// against scattering's density of its direction (`scatter_pdf(wi)`, asked only where
-    /// light passed).
+    /// The second half of a light sample drawn at `surface`: what passed along its
+    /// shadow ray (`transmittance`: 0 blocked, 1 clear) taught to the light and
+    /// environment guides (`path`: the path's number, for the gate's stride), and its
+    /// radiance, MIS-weighted against the scattering `mixture` (the guide's distribution
+    /// and share, the focal share).
+    #[allow(clippy::too_many_arguments)]
     pub(super) fn finish_light_sample(
         &self,
         pending: &PendingLightSample,
         transmittance: f32,
+        surface: &SurfaceInteraction,
         cells: NeeCells,
-        scatter_pdf: impl FnOnce(Vec3) -> f32,
-        records: &mut NeeRecords,
+        (distribution, guide_share, focal_share): (Option<&G::Distribution<'_>>, f32, f32),
+        (clock, records): (&mut GuideClock, &mut NeeRecords),
         path: u64,
-    ) -> Vec3 {
+    ) -> DirectLight {
+        let SurfaceInteraction { wo, ref material, ref shading, .. } = *surface;
         let PendingLightSample { wi, f, emitted, light_pdf, chosen, tile, .. } = *pending;
         let occluded = transmittance <= 0.0;
         if let Some((light, point_pdf)) = chosen {
@@ -247,10 +227,30 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
             self.learn_environment(cell, &sample, f * transmittance, &mut records.environment);
         }
         if occluded {
-            return Vec3::ZERO;
+            return DirectLight::default();
         }
-        let weight = power_heuristic(light_pdf, scatter_pdf(wi));
-        f * emitted * (weight * transmittance / light_pdf)
+        let kickstart = self.kickstarts();
+        let scatter_pdf = if self.settings.nee_weighs_guide {
+            let guide = distribution.map(|distribution| (clock.time(|| distribution.pdf(wi)), guide_share));
+            self.scatter_pdf(material, shading, wo, wi, guide, focal_share)
+        } else {
+            let guide_share = if distribution.is_some() { guide_share } else { 0.0 };
+            nee_partner_pdf(material.pdf(shading, wo, wi), guide_share, focal_share)
+        };
+        let weight = power_heuristic(light_pdf, scatter_pdf);
+        let radiance = f * emitted * (weight * transmittance / light_pdf);
+        // Learning from the sample weighs it by the density of both strategies that draw
+        // its direction (the balance heuristic's deterministic mixture), the guide's in it.
+        let sample = kickstart.then(|| {
+            let guide = distribution.map(|distribution| (distribution.pdf(wi), guide_share));
+            LightSampleRecord {
+                direction: wi,
+                incident: luminance(emitted) * transmittance,
+                light_pdf,
+                scatter_pdf: self.scatter_pdf(material, shading, wo, wi, guide, focal_share),
+            }
+        });
+        DirectLight { radiance, sample }
     }
 
     /// A vertex's cells at `point` in the light guide and the gate, with the probability

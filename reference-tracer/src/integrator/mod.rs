@@ -17,7 +17,6 @@ mod method;
 mod path;
 mod settings;
 mod tracer;
-mod vertex;
 
 pub use bidirectional::{BidirectionalScratch, VirtualPointLights};
 pub use counters::{PathCounters, TIMED_PATH_STRIDE};

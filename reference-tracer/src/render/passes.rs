@@ -43,8 +43,8 @@ pub(super) fn camera_pass<I: Intersector, G: Guide>(
             let first = y as usize * width;
             let rng_of = |i: usize| pixel_rng(pass_seed, (first + i) as u64);
             let pixel_of = |i: usize| (((first + i) % width) as u32, ((first + i) / width) as u32);
-            let estimate_of = |i: usize| image_estimates.pixel(first + i);
-            tracer.radiance_in_lanes(pixels, pixel_of, rng_of, estimate_of, &mut worker.scratch, counters);
+            let PathScratch { lanes, nee_records, .. } = &mut worker.scratch;
+            tracer.radiance_in_lanes(pixels, pixel_of, rng_of, lanes, nee_records, counters);
         })
     } else {
         pixel_pass(film, pass_seed, scratch, |worker, (x, y), rng, counters| {
