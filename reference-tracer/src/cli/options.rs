@@ -343,8 +343,8 @@ pub struct TraceOptions {
     /// one path at a time. Each path draws its own pixel's random numbers as alone, so the
     /// image is the same to the last bit whatever the lanes (where no light or environment
     /// guide learns from the light samples; with one, the same within noise). 16 traces
-    /// 1.2x the paths/s of one path at a time on door and cornell; default 1 while only
-    /// nee runs in lanes.
+    /// 1.11-1.14x the paths/s of one path at a time on door and cornell; default 1 while
+    /// only nee runs in lanes.
     #[arg(long, default_value_t = crate::integrator::DEFAULT_LANES, value_parser = clap::value_parser!(u32).range(1..=1024))]
     pub(super) lanes: u32,
     /// --roulette efficiency: cells along the scene's longest side, 1..=128. 32 measured

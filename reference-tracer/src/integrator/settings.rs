@@ -108,9 +108,9 @@ pub enum Roulette {
 }
 
 /// [`IntegratorSettings::lanes`] by default (`--lanes`): one path at a time, until the
-/// guided methods run in lanes too. In 16 lanes (Embree's packet width) nee traces,
-/// 30 s, seed 41: door 160×120 1.27 M paths/s against 1.06 M, cornell 128² 1.96 M
-/// against 1.66 M; with nee alone faster, the guided methods' equal-time figures against
+/// guided methods run in lanes too. In 16 lanes (Embree's packet width) nee traces, on
+/// one thread, door 160×120 0.66–0.67 M paths/s against 0.58 M, cornell 128² 1.05–1.08 M
+/// against 0.96 M; with nee alone faster, the guided methods' equal-time figures against
 /// it would move by the speed-up, not by what guiding does.
 pub const DEFAULT_LANES: u32 = 1;
 
