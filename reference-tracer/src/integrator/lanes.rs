@@ -137,6 +137,7 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
                     sample.cells,
                     (None, 0.0, 0.0),
                     (&mut clock, records),
+                    // The path's number only sets the gate's stride, and lanes run ungated.
                     counters.paths,
                 );
                 path.radiance += sample.throughput * direct.radiance;
@@ -214,6 +215,8 @@ impl<'a, I: Intersector, G: Guide> PathTracer<'a, I, G> {
         let next = if ends {
             None
         } else {
+            // The guide's choice number is drawn though nothing guides here: the one-path
+            // loop draws it, and each path's numbers must be that loop's.
             let (_u_choice, u_lobe, u) = (rng.next_f32(), rng.next_f32(), rng.next_vec2());
             material.sample(shading, wo, u, u_lobe).and_then(|s| {
                 if delta {
@@ -255,12 +258,17 @@ mod tests {
     use crate::scene::Scene;
     use crate::scene_intersector::{IntersectorChoice, SceneIntersector};
 
+    /// The repository's cornell box.
+    fn cornell() -> Scene {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell/scene.json");
+        Scene::from_json(&path, &std::fs::read_to_string(&path).unwrap()).unwrap()
+    }
+
     /// The lane loop takes `nee` with lanes to spare, and leaves the one-path loop every
     /// path whose vertices need what it leaves out.
     #[test]
     fn nee_with_lanes_is_traced_in_lanes_and_guided_paths_are_not() {
-        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell/scene.json");
-        let scene = Scene::from_json(&path, &std::fs::read_to_string(&path).unwrap()).unwrap();
+        let scene = cornell();
         let intersector = SceneIntersector::build(&scene.triangles, IntersectorChoice::default()).unwrap();
         let tracer = |method, lanes| {
             let settings = IntegratorSettings { method, lanes, ..Default::default() };
@@ -278,8 +286,7 @@ mod tests {
     /// it from the same generator, and the counters add up alike.
     #[test]
     fn every_pixel_gets_its_own_path() {
-        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell/scene.json");
-        let scene = Scene::from_json(&path, &std::fs::read_to_string(&path).unwrap()).unwrap();
+        let scene = cornell();
         let scene = Scene { camera: scene.camera.with_resolution(8, 8), ..scene };
         let intersector = SceneIntersector::build(&scene.triangles, IntersectorChoice::default()).unwrap();
         let settings = IntegratorSettings { lanes: 3, ..Default::default() };
