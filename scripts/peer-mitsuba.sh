@@ -10,7 +10,9 @@
 #
 # The scene format's subset Mitsuba can render alike is converted: diffuse, conductor and
 # dielectric materials, area lights, a constant environment, OBJ/PLY/inline meshes and
-# quads. Anything else (textures, image environments, a sun, …) is refused, naming it.
+# quads, each shape naming its material (`lodestar compare --peer mitsuba` writes an OBJ's
+# MTL materials inline first). Anything else (textures, image environments, a sun, …) is
+# refused, naming it.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 venv=$root/.cache/mitsuba-venv

@@ -131,6 +131,11 @@ def convert(scene_path, args, workdir):
         if kind not in SHAPE_KEYS:
             raise Unsupported(f"{where}.type: '{kind}' is not supported by the Mitsuba peer")
         check_keys(where, shape, SHAPE_KEYS[kind])
+        if "material" not in shape:
+            raise Unsupported(
+                f"{where}: a shape without 'material' takes its OBJ's MTL materials, which the Mitsuba peer "
+                "does not read (`lodestar compare --peer mitsuba` writes them inline first)"
+            )
         if shape["material"] not in materials:
             raise Unsupported(f"{where}.material: unknown material '{shape['material']}'")
         bsdf, emission = materials[shape["material"]]

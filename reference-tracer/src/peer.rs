@@ -75,11 +75,16 @@ pub fn run_peer(
     if !script.is_file() {
         return Err(format!("--peer {}: no script at {}", peer.name(), script.display()));
     }
+    // The peer reads the project's JSON with every shape's material named: the scene is
+    // written so (a pbrt or Mitsuba scene converted, an OBJ's MTL materials inline).
+    let peer_scene = out.join(format!("{}-scene.json", peer.name()));
+    crate::import::write_self_contained_json(scene, &peer_scene)
+        .map_err(|e| format!("--peer {}: cannot write the scene for it: {e}", peer.name()))?;
     let image_path = out.join(format!("{}.exr", peer.name()));
     let mut command = Command::new("bash");
     command
         .arg(&script)
-        .arg(scene)
+        .arg(&peer_scene)
         .arg(seconds.to_string())
         .arg(&image_path)
         .args(["--max-depth", &(settings.max_depth + 1).to_string()])

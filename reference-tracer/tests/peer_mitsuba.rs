@@ -71,6 +71,27 @@ fn the_mitsuba_peer_renders_cornell_as_lodestar_does() {
     }
 }
 
+/// An OBJ whose faces take their MTL file's materials (McGuire's original Cornell box,
+/// eight of them) reaches the peer written inline, as `compare --peer` writes it, and
+/// the peer renders it as Lodestar renders the original.
+#[test]
+fn the_mitsuba_peer_renders_mtl_materials_written_inline() {
+    let Some(python) = peer_python() else { return };
+    let scene = repository_scene("cornell-box-original", 32, 32);
+    let inline = scene.with_file_name("inline.json");
+    reference_tracer::import::write_self_contained_json(&scene, &inline).unwrap();
+    let out = scene.with_file_name("peer.exr");
+    let output = run_peer(&python, &inline, "4", &out);
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let peer = read_image(&out).unwrap();
+    let (ours, _) = render_image(&scene, settings(Method::Nee), None, 1024, 3);
+    for (label, columns) in [("left half", 0..16), ("right half", 16..32), ("whole", 0..32)] {
+        let (a, b) = (mean_of_columns(&peer, columns.clone()), mean_of_columns(&ours, columns));
+        let relative = ((a - b).abs() / b).max_element();
+        assert!(relative < 0.03, "{label}: Mitsuba {a} against Lodestar {b}");
+    }
+}
+
 #[test]
 fn the_mitsuba_peer_refuses_what_it_cannot_render_alike_by_name() {
     let Some(python) = peer_python() else { return };
@@ -82,6 +103,11 @@ fn the_mitsuba_peer_refuses_what_it_cannot_render_alike_by_name() {
     let output = run_peer(&python, &repository().join("scenes/living-room/scene.xml"), "1", Path::new("unused.exr"));
     assert_eq!(output.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&output.stderr).contains("lodestar convert"));
+    // A shape without a material of its own is refused by name, not by a traceback.
+    let original = repository().join("scenes/cornell-box-original/scene.json");
+    let output = run_peer(&python, &original, "1", Path::new("unused.exr"));
+    assert_eq!(output.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&output.stderr).contains("shapes[0]: a shape without 'material'"));
 }
 
 /// Runs `lodestar compare` on cornell 16² against a flat reference with `--peer mitsuba`

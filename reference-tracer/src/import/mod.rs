@@ -7,9 +7,12 @@
 //! (integrator, sampler, filter settings) are skipped and listed as warnings; anything
 //! else unknown is an error, so a scene never renders silently wrong.
 
+mod inline_mtl;
 pub mod mitsuba;
 pub mod pbrt;
 mod primitives;
+
+pub use inline_mtl::inline_mtl_meshes;
 
 use std::path::Path;
 
@@ -87,7 +90,35 @@ pub fn import(path: &Path) -> Result<Imported, SceneError> {
 /// `output` in the project's JSON format, with every file it names made relative to
 /// `output`'s folder. Returns what the reader skipped or approximated.
 pub fn convert(input: &Path, output: &Path) -> Result<Vec<String>, SceneError> {
-    let Imported { mut description, warnings } = import(input)?;
+    let Imported { description, warnings } = import(input)?;
+    write_json(input, description, output)?;
+    Ok(warnings)
+}
+
+/// Writes the scene `input` (JSON, pbrt or Mitsuba) to `output` as JSON in which every
+/// shape names its material: meshes that take their OBJ's MTL materials are written
+/// inline ([`inline_mtl_meshes`]). For a renderer that reads the project's JSON but not
+/// MTL files (the Mitsuba peer). Returns what a foreign reader skipped or approximated.
+pub fn write_self_contained_json(input: &Path, output: &Path) -> Result<Vec<String>, SceneError> {
+    let (mut description, warnings) = match SceneFormat::of(input)? {
+        SceneFormat::Json => {
+            let text =
+                std::fs::read_to_string(input).map_err(|e| SceneError::new(input, "", format!("cannot read: {e}")))?;
+            (SceneDescription::from_json(input, &text)?, Vec::new())
+        }
+        _ => {
+            let Imported { description, warnings } = import(input)?;
+            (description, warnings)
+        }
+    };
+    inline_mtl_meshes(&mut description, input)?;
+    write_json(input, description, output)?;
+    Ok(warnings)
+}
+
+/// Checks that `description` (read from `input`) builds and writes it to `output` as
+/// JSON, every file it names made relative to `output`'s folder.
+fn write_json(input: &Path, mut description: SceneDescription, output: &Path) -> Result<(), SceneError> {
     Scene::from_description(input, description.clone())?;
     let from = input.parent().unwrap_or(Path::new("."));
     let to = output.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
@@ -109,8 +140,7 @@ pub fn convert(input: &Path, output: &Path) -> Result<Vec<String>, SceneError> {
     }
     let json = serde_json::to_string_pretty(&description)
         .map_err(|e| SceneError::new(output, "", format!("cannot encode the scene: {e}")))?;
-    std::fs::write(output, json + "\n").map_err(|e| SceneError::new(output, "", format!("cannot write: {e}")))?;
-    Ok(warnings)
+    std::fs::write(output, json + "\n").map_err(|e| SceneError::new(output, "", format!("cannot write: {e}")))
 }
 
 /// An error at `line` of `file`.

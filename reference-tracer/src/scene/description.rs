@@ -4,8 +4,11 @@
 //! `lodestar convert` writes them back out as JSON.
 
 use std::collections::BTreeMap;
+use std::path::Path;
 
 use serde::{Deserialize, Serialize};
+
+use super::SceneError;
 
 /// The whole file.
 #[derive(Clone, Debug, Deserialize, Serialize)]
@@ -25,6 +28,21 @@ pub struct SceneDescription {
     /// Light from infinitely far away; absent means black.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub environment: Option<EnvironmentDescription>,
+}
+
+impl SceneDescription {
+    /// Parses the JSON scene `text` read from `path`; an error names where in it.
+    pub fn from_json(path: &Path, text: &str) -> Result<Self, SceneError> {
+        let deserializer = &mut serde_json::Deserializer::from_str(text);
+        serde_path_to_error::deserialize(deserializer).map_err(|e| {
+            let location = match e.path().to_string().as_str() {
+                "." => String::new(),
+                p => p.to_string(),
+            };
+            let inner = e.inner();
+            SceneError::new(path, location, format!("{inner} (line {}, column {})", inner.line(), inner.column()))
+        })
+    }
 }
 
 /// A pinhole camera.

@@ -29,7 +29,7 @@ pub use description::{
     TextureDescription, TextureEncoding,
 };
 pub use error::SceneError;
-pub use mesh::{parse_mesh, ply_has_normals, MeshData, MeshFormat, MtlMaterial};
+pub use mesh::{load_mesh, parse_mesh, ply_has_normals, MeshData, MeshFormat, MtlMaterial};
 
 /// The largest image side accepted, pixels.
 pub const MAX_IMAGE_SIDE: u32 = 16_384;
@@ -72,16 +72,7 @@ impl Scene {
     /// Builds a scene from the JSON `text` of the file `path` (named in errors; relative
     /// file names resolve against its folder).
     pub fn from_json(path: &Path, text: &str) -> Result<Scene, SceneError> {
-        let deserializer = &mut serde_json::Deserializer::from_str(text);
-        let description: SceneDescription = serde_path_to_error::deserialize(deserializer).map_err(|e| {
-            let location = match e.path().to_string().as_str() {
-                "." => String::new(),
-                p => p.to_string(),
-            };
-            let inner = e.inner();
-            SceneError::new(path, location, format!("{inner} (line {}, column {})", inner.line(), inner.column()))
-        })?;
-        Self::from_description(path, description)
+        Self::from_description(path, SceneDescription::from_json(path, text)?)
     }
 
     /// Builds a scene from a parsed description; relative file names resolve against the
