@@ -1,7 +1,8 @@
 //! Nanoseconds per guide operation on a 1,000-probe hemisphere grid over a closed box
 //! (the Cornell box's walls): locate, sample, pdf, update, estimate, rebuild; and on a
 //! learned spatial × directional tree over the same box: a render-time vertex (locate,
-//! distribution, sample, pdf), a record learned in place, and one pushed to a thread's
+//! distribution, sample, pdf; and each part apart, also on an untaught tree), a record
+//! learned in place, and one pushed to a thread's
 //! records and splatted between passes (each timed apart); and on a focal guide taught
 //! an opening in the box: its pdf of a direction (half of them drawn towards its boxes)
 //! and a sample.
@@ -147,6 +148,57 @@ fn bench_tree(c: &mut Criterion) {
             let distribution = tree.distribution(region);
             let s = distribution.sample(black_box(uniforms[i]));
             black_box(distribution.pdf(black_box(s.direction)))
+        })
+    });
+    // The vertex's parts timed apart (the distribution's set-up in each of the last two),
+    // and a tree that was never taught (its root alone) to tell the parts' fixed cost from
+    // their descents': regions whose normal lies along the leaf's axis, as most do.
+    let regions: Vec<_> = (0..count).map(|k| tree.locate(queries.positions[k], queries.normals[k]).unwrap()).collect();
+    let directions: Vec<_> = (0..count).map(|k| tree.sample(regions[k], uniforms[k]).direction).collect();
+    c.bench_function("tree_vertex_part_locate", |b| {
+        b.iter(|| {
+            i = (i + 1) % count;
+            black_box(tree.locate(black_box(queries.positions[i]), black_box(queries.normals[i])))
+        })
+    });
+    c.bench_function("tree_vertex_part_distribution", |b| {
+        b.iter(|| {
+            i = (i + 1) % count;
+            black_box(tree.distribution(black_box(regions[i])));
+        })
+    });
+    c.bench_function("tree_vertex_part_sample", |b| {
+        b.iter(|| {
+            i = (i + 1) % count;
+            black_box(tree.distribution(black_box(regions[i])).sample(black_box(uniforms[i])))
+        })
+    });
+    c.bench_function("tree_vertex_part_pdf", |b| {
+        b.iter(|| {
+            i = (i + 1) % count;
+            black_box(tree.distribution(black_box(regions[i])).pdf(black_box(directions[i])))
+        })
+    });
+    let untaught = SpatialDirectionalTree::new(Vec3::NEG_ONE, Vec3::ONE, SpatialDirectionalTreeSettings::default())
+        .expect("tree over the box");
+    // An untaught leaf's square is built around z: the floor's and ceiling's points.
+    let along_z: Vec<_> = (0..queries.positions.len())
+        .filter(|&k| queries.normals[k].z.abs() > 0.99)
+        .map(|k| untaught.locate(queries.positions[k], queries.normals[k]).expect("a leaf"))
+        .collect();
+    let along_z_directions: Vec<_> =
+        along_z.iter().zip(&uniforms).map(|(&r, &u)| untaught.sample(r, u).direction).collect();
+    let mut j = 0usize;
+    c.bench_function("tree_vertex_part_sample_untaught", |b| {
+        b.iter(|| {
+            j = (j + 1) % along_z.len();
+            black_box(untaught.distribution(black_box(along_z[j])).sample(black_box(uniforms[j])))
+        })
+    });
+    c.bench_function("tree_vertex_part_pdf_untaught", |b| {
+        b.iter(|| {
+            j = (j + 1) % along_z.len();
+            black_box(untaught.distribution(black_box(along_z[j])).pdf(black_box(along_z_directions[j])))
         })
     });
     let records: Vec<_> = (0..count)
