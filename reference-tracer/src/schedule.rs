@@ -30,6 +30,14 @@ impl Budget {
 /// passes' speed, and the guide gains little from the longest iterations.
 pub const DEFAULT_TRAINING_SHARE: f64 = 0.15;
 
+/// Training passes before which an iteration may end within twice the share: the
+/// second and third iterations (to 3 and 7 passes). Where a pass is long, the share alone
+/// stopped training after 3 passes: Veach Ajar 1280×720 at 60 s (about 1.3 s a pass)
+/// then rendered guided-nee ÷ nee 0.531, 0.533, 0.511 and 0.552 (seeds 41, 42, 41, 42),
+/// and after 7 passes (`--train-share 0.2`, or the share at the third iteration's end
+/// on a faster day) 0.480, 0.519, 0.492 and 0.494.
+const EARLY_PASSES: u32 = 7;
+
 /// The training schedule of a guided render.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Schedule {
@@ -120,14 +128,14 @@ impl Training {
     /// An iteration that took d seconds is followed by one of ≈ 2d. Training goes on
     /// while the time left after that next iteration is still at least twice its length,
     /// so the frozen image gets at least half the time even in the worst case, and while
-    /// that next iteration would end within `share` of the budget; the second iteration
-    /// (the first learned with a refitted guide) may end within twice the share. Without
-    /// that, where a pass is long the count of training passes was a coin flip: the living
-    /// room 1280×720 at 60 s trained 3 passes in some runs and 1 in others (a first pass
-    /// of 3.09 s puts the next two past 9 s), relMSE 0.169 and 0.251. Ending training at
-    /// the boundary nearest the share instead gave door 160×120 twice the training and
-    /// 1.08× the relMSE. Under a sample budget of N, training goes on while its passes
-    /// stay within N/2.
+    /// that next iteration would end within `share` of the budget; the second and third
+    /// iterations (the first learned with a refitted guide) may end within twice the
+    /// share ([`EARLY_PASSES`]). Without that, where a pass is long the count of training
+    /// passes was a coin flip: the living room 1280×720 at 60 s trained 3 passes in some
+    /// runs and 1 in others (a first pass of 3.09 s puts the next two past 9 s), relMSE
+    /// 0.169 and 0.251. Ending training at the boundary nearest the share instead gave
+    /// door 160×120 twice the training and 1.08× the relMSE. Under a sample budget of N,
+    /// training goes on while its passes stay within N/2.
     pub fn after_pass(&mut self, seconds: f64, budget: Budget) -> Step {
         if !self.active {
             return Step::Render;
@@ -141,7 +149,7 @@ impl Training {
         let goes_on = match budget {
             Budget::Seconds(limit) => {
                 let next_seconds = 2.0 * (seconds - self.started);
-                let share = if self.total == 1 { 2.0 * self.share } else { self.share };
+                let share = if self.total < EARLY_PASSES { 2.0 * self.share } else { self.share };
                 limit - seconds - next_seconds >= 2.0 * next_seconds && seconds + next_seconds <= share * limit
             }
             Budget::SamplesPerPixel(spp) => 2 * (self.total as u64 + next as u64) <= spp as u64,
@@ -190,7 +198,7 @@ mod tests {
     }
 
     #[test]
-    fn a_second_iteration_may_take_up_to_twice_the_share() {
+    fn the_second_and_third_iterations_may_take_up_to_twice_the_share() {
         let passes_at = |pass_seconds: f64| {
             let mut training = Training::new(true, 0.15);
             let mut t = 0.0;
@@ -206,6 +214,11 @@ mod tests {
         assert_eq!(passes_at(3.09), 3);
         // Passes of 6.5 s: the second iteration would end at 19.5 s, past 18 s.
         assert_eq!(passes_at(6.5), 1);
+        // Passes of 1.3 s (Veach Ajar's): the third iteration ends at 9.1 s, past the
+        // share's 9 s but within twice it; the fourth would end at 19.5 s, past 9 s.
+        assert_eq!(passes_at(1.3), 7);
+        // Passes of 2.6 s: the third would end at 18.2 s, past 18 s.
+        assert_eq!(passes_at(2.6), 3);
         // Short passes: the share alone decides (iterations end at 2.55, 5.11 s; the next
         // would end at 10.23 s).
         assert_eq!(passes_at(0.01), 511);

@@ -359,8 +359,8 @@ pub struct TraceOptions {
     #[arg(long, default_value_t = 0.0)]
     pub(super) train_seconds: f64,
     /// The most of --seconds the iterative schedule trains for, in (0, 1], except that its
-    /// second iteration may end within twice it (it also stops where the next doubled
-    /// iteration would leave the frozen image less than half).
+    /// second and third iterations may end within twice it (it also stops where the next
+    /// doubled iteration would leave the frozen image less than half).
     /// Default 0.15, and 0.5 for guided on the CPU. 0.15 measured best for guided-nee at
     /// 60 s, seed 41, relMSE against 1 (the doubling rule alone): glossy 128² 0.98×, door
     /// 160×120 0.97×, cornell 128² 0.97×, Veach Ajar 0.95×, living room 0.82× (0.3: 0.99×,
