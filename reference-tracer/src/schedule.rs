@@ -130,7 +130,7 @@ impl Training {
     /// so the frozen image gets at least half the time even in the worst case, and while
     /// that next iteration would end within `share` of the budget; the second and third
     /// iterations (the first learned with a refitted guide) may end within twice the
-    /// share ([`EARLY_PASSES`]). Without that, where a pass is long the count of training
+    /// share (up to 7 passes). Without that, where a pass is long the count of training
     /// passes was a coin flip: the living room 1280×720 at 60 s trained 3 passes in some
     /// runs and 1 in others (a first pass of 3.09 s puts the next two past 9 s), relMSE
     /// 0.169 and 0.251. Ending training at the boundary nearest the share instead gave
