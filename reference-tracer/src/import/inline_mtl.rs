@@ -12,8 +12,9 @@ use crate::scene::{load_mesh, MaterialDescription, MtlMaterial, SceneDescription
 /// of its own by one `triangles` shape per MTL material its faces use, with the vertices
 /// those faces use (and their normals, unless the mesh shades by face normals). A
 /// material the scene does not define by that name is added as the loader builds it:
-/// diffuse `Kd` clamped to [0, 1], emitting `Ke`. Errors name the shape: its file, a
-/// face without a material, or a transform or flip (which `triangles` shapes lack).
+/// diffuse `Kd` clamped to [0, 1], emitting `Ke`. Errors name the shape: its file, or a
+/// transform or flip (which `triangles` shapes lack). Build the scene first: a face
+/// without a material is the loader's error, and is left out here.
 pub fn inline_mtl_meshes(description: &mut SceneDescription, scene_file: &Path) -> Result<(), SceneError> {
     let folder = scene_file.parent().unwrap_or(Path::new("."));
     let mut shapes = Vec::with_capacity(description.shapes.len());
@@ -29,14 +30,12 @@ pub fn inline_mtl_meshes(description: &mut SceneDescription, scene_file: &Path) 
             return Err(SceneError::new(scene_file, location, message));
         }
         let mesh = load_mesh(&folder.join(file), scene_file, &location)?;
+        // A mesh without MTL materials, or with a face lacking one, is the loader's error
+        // (the caller builds the scene first): such faces are never written.
         let Some((mtl, faces)) = &mesh.face_materials else {
-            let message = "missing: the mesh has no MTL materials to take instead";
-            return Err(SceneError::new(scene_file, format!("{location}.material"), message));
+            shapes.push(shape);
+            continue;
         };
-        if let Some(face) = faces.iter().position(Option::is_none) {
-            let message = format!("face {face} of the OBJ has no MTL material; give the shape a `material`");
-            return Err(SceneError::new(scene_file, format!("{location}.material"), message));
-        }
         let normals = mesh.normals.as_ref().filter(|_| !face_normals);
         for (id, material) in mtl.iter().enumerate() {
             // This material's faces, their vertices renumbered in order of first use.
@@ -75,20 +74,12 @@ pub fn inline_mtl_meshes(description: &mut SceneDescription, scene_file: &Path) 
 
 /// The scene material the loader builds for an MTL material.
 fn diffuse(mtl: &MtlMaterial) -> MaterialDescription {
-    // As the loader: a vector with a non-finite part is black, the rest at least 0.
-    let clean = |v: [f32; 3], most: f32| {
-        if v.iter().all(|c| c.is_finite()) {
-            v.map(|c| c.clamp(0.0, most))
-        } else {
-            [0.0; 3]
-        }
-    };
-    let emission = clean(mtl.emission, f32::MAX);
+    let (albedo, emission) = mtl.albedo_and_emission();
     MaterialDescription::Diffuse {
-        albedo: Some(clean(mtl.diffuse, 1.0)),
+        albedo: Some(albedo.to_array()),
         albedo_texture: None,
         opacity_texture: None,
-        emission: emission.iter().any(|&c| c > 0.0).then_some(emission),
+        emission: (emission.max_element() > 0.0).then_some(emission.to_array()),
     }
 }
 

@@ -111,6 +111,9 @@ pub fn write_self_contained_json(input: &Path, output: &Path) -> Result<Vec<Stri
             (description, warnings)
         }
     };
+    // The scene as written must build (the loader names a face without a material), and
+    // so must the one written inline (`write_json` checks it).
+    Scene::from_description(input, description.clone())?;
     inline_mtl_meshes(&mut description, input)?;
     write_json(input, description, output)?;
     Ok(warnings)

@@ -132,15 +132,25 @@ pub(super) fn build_material(
     Ok(Material { surface, emission, albedo_texture, opacity_texture })
 }
 
-/// A scene material for an MTL material: diffuse `Kd` (clamped to [0, 1]), emitting `Ke`.
+impl MtlMaterial {
+    /// What the tracer takes of it: the diffuse reflectance `Kd` clamped to [0, 1] and the
+    /// emitted radiance `Ke`, at least 0 (a vector with a non-finite part is black).
+    pub fn albedo_and_emission(&self) -> (Vec3, Vec3) {
+        let finite = |v: [f32; 3]| {
+            let v = Vec3::from(v);
+            if v.is_finite() {
+                v.max(Vec3::ZERO)
+            } else {
+                Vec3::ZERO
+            }
+        };
+        (finite(self.diffuse).min(Vec3::ONE), finite(self.emission))
+    }
+}
+
+/// A scene material for an MTL material: diffuse, emitting
+/// ([`MtlMaterial::albedo_and_emission`]).
 pub(super) fn mtl_material(mtl: &MtlMaterial) -> Material {
-    let finite = |v: [f32; 3]| {
-        let v = Vec3::from(v);
-        if v.is_finite() {
-            v.max(Vec3::ZERO)
-        } else {
-            Vec3::ZERO
-        }
-    };
-    Material::new(Surface::Diffuse { albedo: finite(mtl.diffuse).min(Vec3::ONE) }, finite(mtl.emission))
+    let (albedo, emission) = mtl.albedo_and_emission();
+    Material::new(Surface::Diffuse { albedo }, emission)
 }
